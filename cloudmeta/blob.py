@@ -1,0 +1,144 @@
+"""A blob: metaballs that share one kernel and one threshold (MODEL.md §1).
+
+The constructor validates everything once and packs the balls into the flat arrays the kernels read:
+each ball becomes a centre and a 3x3 matrix ``frame`` = S^-1 Q^T that maps a point into the ball's unit
+frame, where u(x) = |frame (x - c)|^2. Spheres are the case S = R I, Q = I, so one code path serves both.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+
+#: kernel name -> the integer id the numba kernels switch on
+KERNELS = {"wyvill6": 0, "murakami4": 1, "nishimura": 2, "blinn": 3}
+
+
+def _finite_array(name, value, shape_tail, dtype=np.float64):
+    try:
+        arr = np.array(value, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: expected an array of numbers ({exc})") from None
+    if shape_tail is not None:
+        want = len(shape_tail) + 1
+        if arr.ndim != want or tuple(arr.shape[1:]) != tuple(shape_tail):
+            tail = "".join(f", {s}" for s in shape_tail)
+            raise InputError(f"{name}: expected shape (N{tail}), got {arr.shape}")
+    bad = np.argwhere(~np.isfinite(arr))
+    if len(bad):
+        raise InputError(f"{name}[{', '.join(str(int(i)) for i in bad[0])}]: expected a finite number, got {arr[tuple(bad[0])]}")
+    return arr
+
+
+def rotation_matrix(angles_deg):
+    """Q = Rz(az) Ry(ay) Rx(ax) for angles [ax, ay, az] in degrees (MODEL.md §9); accepts (..., 3)."""
+    a = np.radians(np.asarray(angles_deg, dtype=np.float64))
+    cx, cy, cz = np.cos(a[..., 0]), np.cos(a[..., 1]), np.cos(a[..., 2])
+    sx, sy, sz = np.sin(a[..., 0]), np.sin(a[..., 1]), np.sin(a[..., 2])
+    q = np.empty(a.shape[:-1] + (3, 3))
+    q[..., 0, 0] = cz * cy
+    q[..., 0, 1] = cz * sy * sx - sz * cx
+    q[..., 0, 2] = cz * sy * cx + sz * sx
+    q[..., 1, 0] = sz * cy
+    q[..., 1, 1] = sz * sy * sx + cz * cx
+    q[..., 1, 2] = sz * sy * cx - cz * sx
+    q[..., 2, 0] = -sy
+    q[..., 2, 1] = cy * sx
+    q[..., 2, 2] = cy * cx
+    return q
+
+
+class Blob:
+    """Metaballs with one kernel and one threshold T; the inside is F(x) >= T.
+
+    Parameters
+    ----------
+    centers : (N, 3) ball centres.
+    radii : (N,) sphere radii, or (N, 3) ellipsoid radii along the columns of each rotation.
+    weights : (N,) weights q_i (any real; negative weights carve). A scalar applies to every ball.
+    kernel : ``wyvill6`` (default), ``murakami4``, ``nishimura`` or ``blinn`` (MODEL.md §1).
+    threshold : T > 0 (default 0.5).
+    rotations : optional (N, 3) angles [ax, ay, az] in degrees, Q = Rz Ry Rx, or (N, 3, 3) matrices.
+    blobbiness : b of the ``blinn`` kernel, k(u) = exp(-b u) (default 4).
+    """
+
+    def __init__(self, centers, radii, weights=1.0, kernel="wyvill6", threshold=0.5, rotations=None,
+                 blobbiness=4.0):
+        centers = _finite_array("centers", centers, (3,))
+        n = len(centers)
+        if n == 0:
+            raise InputError("centers: a blob needs at least one ball")
+        radii = _finite_array("radii", radii, None)
+        if radii.ndim == 1 and radii.shape == (n,):
+            radii3 = np.repeat(radii[:, None], 3, axis=1)
+        elif radii.shape == (n, 3):
+            radii3 = radii
+        else:
+            raise InputError(f"radii: expected shape ({n},) or ({n}, 3) to match centers, got {radii.shape}")
+        bad = np.argwhere(radii3 <= 0)
+        if len(bad):
+            i = int(bad[0][0])
+            raise InputError(f"radii[{i}]: expected a radius > 0, got {radii[i]}")
+        weights = _finite_array("weights", weights, None)
+        if weights.ndim == 0:
+            weights = np.full(n, float(weights))
+        if weights.shape != (n,):
+            raise InputError(f"weights: expected shape ({n},) to match centers, got {weights.shape}")
+        if kernel not in KERNELS:
+            raise InputError(f"kernel: expected one of {', '.join(KERNELS)}, got {kernel!r}")
+        if not (isinstance(threshold, (int, float, np.floating, np.integer)) and np.isfinite(threshold)
+                and threshold > 0):
+            raise InputError(f"threshold: expected a finite number > 0, got {threshold!r}")
+        if not (np.isfinite(blobbiness) and blobbiness > 0):
+            raise InputError(f"blobbiness: expected a finite number > 0, got {blobbiness!r}")
+        if rotations is None:
+            q = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+        else:
+            rot = _finite_array("rotations", rotations, None)
+            if rot.shape == (n, 3):
+                q = rotation_matrix(rot)
+            elif rot.shape == (n, 3, 3):
+                q = rot
+                err = np.abs(np.einsum("nji,njk->nik", q, q) - np.eye(3)).max(axis=(1, 2))
+                bad = np.flatnonzero(err > 1e-9)
+                if len(bad):
+                    raise InputError(f"rotations[{bad[0]}]: expected an orthonormal 3x3 matrix")
+            else:
+                raise InputError(f"rotations: expected shape ({n}, 3) in degrees or ({n}, 3, 3), got {rot.shape}")
+
+        self.kernel = kernel
+        self.kernel_id = KERNELS[kernel]
+        self.threshold = float(threshold)
+        self.blobbiness = float(blobbiness)
+        self.centers = np.ascontiguousarray(centers)
+        self.radii = np.ascontiguousarray(radii3)
+        self.weights = np.ascontiguousarray(weights)
+        self.rotations = np.ascontiguousarray(q)
+        # u(x) = |frame (x - c)|^2 with frame = S^-1 Q^T
+        self.frames = np.ascontiguousarray(self.rotations.transpose(0, 2, 1) / self.radii[:, :, None])
+        # axis-aligned box of each support: half-width along axis k is |row k of Q S|
+        half = np.sqrt(np.einsum("nkj,nj->nk", self.rotations ** 2, self.radii ** 2))
+        self.bounds = np.ascontiguousarray(np.concatenate([centers - half, centers + half], axis=1))
+        for arr in (self.centers, self.radii, self.weights, self.rotations, self.frames, self.bounds):
+            arr.setflags(write=False)
+
+    def __len__(self):
+        return len(self.centers)
+
+    def __repr__(self):
+        return f"Blob({len(self)} balls, kernel={self.kernel!r}, threshold={self.threshold})"
+
+    @property
+    def is_sphere(self):
+        """(N,) True where a ball is a sphere (equal radii)."""
+        return np.all(self.radii == self.radii[:, :1], axis=1)
+
+    @property
+    def bbox(self):
+        """(lo, hi) of the union of the balls' supports."""
+        return self.bounds[:, :3].min(axis=0), self.bounds[:, 3:].max(axis=0)
+
+    @property
+    def diagonal(self):
+        lo, hi = self.bbox
+        return float(np.linalg.norm(hi - lo))

@@ -1,0 +1,288 @@
+"""One ray through one blob: chords -> composite intervals -> roots and inside pieces -> optical depth.
+
+The ray's field is piecewise: between consecutive chord ends the set of balls on the ray is fixed, and
+the field there is one degree-6 Bernstein polynomial, the sum of each ball's curve cut to the interval
+(MODEL.md §2). Inside pieces are the parts of those intervals where F >= T, each carrying F's control
+values on itself, so every later integral is exact.
+
+Scratch arrays come from ``alloc_scratch`` and are reused ray after ray; ``capacity`` is the most chords
+one ray may meet before the caller must allocate a larger scratch.
+"""
+import numpy as np
+from numba import njit
+
+from ..config import NJIT
+from .bernstein import NCOEF, bernstein_mean, subdivide
+from .clipping import STACK_DEPTH, clip_roots
+from .metaball import chord, control_values
+
+#: inside pieces per composite interval at most: a degree-6 curve changes class at most 6 times
+PIECES_PER_INTERVAL = 4
+#: transitions per composite interval at most: 6 crossings plus one at its start
+ROOTS_PER_INTERVAL = 8
+#: |g| below NOISE * (T + sum of |control values|) is rounding noise (a touch, not a segment)
+NOISE = 64.0 * 2.220446049250313e-16
+
+DENSITY_FIELD = 0
+DENSITY_EXCESS = 1
+DENSITY_UNIFORM = 2
+
+
+@njit(**NJIT)
+def alloc_scratch(capacity):
+    """Per-thread work arrays for rays that meet at most ``capacity`` chords."""
+    p = max(capacity, 1)
+    return (np.empty(p), np.empty(p), np.empty((p, NCOEF)),            # chords: t0, t1, control values
+            np.empty(2 * p), np.empty(p, np.int64), np.empty(p, np.int64),  # breakpoints, start order, active
+            np.empty(2 * p), np.empty(2 * p), np.empty((2 * p, NCOEF)), np.empty(2 * p),  # intervals + magnitude
+            np.empty(PIECES_PER_INTERVAL * 2 * p), np.empty(PIECES_PER_INTERVAL * 2 * p),
+            np.empty((PIECES_PER_INTERVAL * 2 * p, NCOEF)),                # inside pieces: t0, t1, F
+            np.empty(ROOTS_PER_INTERVAL * 2 * p),                           # transitions
+            np.empty(STACK_DEPTH), np.empty(STACK_DEPTH), np.empty((STACK_DEPTH, NCOEF)),  # clipping stack
+            np.empty((2, NCOEF)), np.empty(NCOEF), np.empty(16), np.empty(16, np.bool_))   # work rows, g, roots
+
+
+@njit(**NJIT)
+def capacity_of(scratch):
+    return scratch[0].shape[0]
+
+
+@njit(**NJIT)
+def heap_argsort(keys, idx, n):
+    """Sort idx[:n] (a permutation of 0..n-1, filled here) by keys, in place, without allocating."""
+    for i in range(n):
+        idx[i] = i
+    for start in range(n // 2 - 1, -1, -1):
+        _sift(keys, idx, start, n)
+    for end in range(n - 1, 0, -1):
+        idx[0], idx[end] = idx[end], idx[0]
+        _sift(keys, idx, 0, end)
+
+
+@njit(**NJIT)
+def _sift(keys, idx, root, n):
+    while True:
+        child = 2 * root + 1
+        if child >= n:
+            return
+        if child + 1 < n and keys[idx[child + 1]] > keys[idx[child]]:
+            child += 1
+        if keys[idx[root]] >= keys[idx[child]]:
+            return
+        idx[root], idx[child] = idx[child], idx[root]
+        root = child
+
+
+@njit(**NJIT)
+def heap_sort(a, n):
+    """Sort a[:n] in place."""
+    for start in range(n // 2 - 1, -1, -1):
+        _sift_values(a, start, n)
+    for end in range(n - 1, 0, -1):
+        a[0], a[end] = a[end], a[0]
+        _sift_values(a, 0, end)
+
+
+@njit(**NJIT)
+def _sift_values(a, root, n):
+    while True:
+        child = 2 * root + 1
+        if child >= n:
+            return
+        if child + 1 < n and a[child + 1] > a[child]:
+            child += 1
+        if a[root] >= a[child]:
+            return
+        a[root], a[child] = a[child], a[root]
+        root = child
+
+
+@njit(**NJIT)
+def gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, cand, n_cand, scratch):
+    """Chords of the candidate balls that overlap [tmin, tmax], with their control values.
+
+    Returns how many there are; only the first ``capacity`` are written, so a larger count tells the
+    caller to grow the scratch and call again.
+    """
+    p_t0, p_t1, p_c = scratch[0], scratch[1], scratch[2]
+    cap = p_t0.shape[0]
+    n = 0
+    for k in range(n_cand):
+        i = cand[k]
+        t0, t1, a = chord(o, d, centers[i], frames[i])
+        if a <= 0.0 or t1 <= tmin or t0 >= tmax or weights[i] == 0.0:
+            continue
+        if n < cap:
+            p_t0[n] = t0
+            p_t1[n] = t1
+            control_values(kernel, min(a, 1.0), weights[i], p_c[n])
+        n += 1
+    return n
+
+
+@njit(**NJIT)
+def composite(n_p, tmin, tmax, scratch):
+    """Cut every chord's curve to the intervals between consecutive chord ends and add them up.
+
+    Writes the intervals (clipped to [tmin, tmax]) with F's control values and the sum of the
+    magnitudes of the added control values (the scale of F's rounding error); returns their number.
+    """
+    p_t0, p_t1, p_c = scratch[0], scratch[1], scratch[2]
+    bp, order, act = scratch[3], scratch[4], scratch[5]
+    iv_t0, iv_t1, iv_c, iv_mag = scratch[6], scratch[7], scratch[8], scratch[9]
+    work = scratch[17][0]
+    for k in range(n_p):
+        bp[2 * k] = p_t0[k]
+        bp[2 * k + 1] = p_t1[k]
+    heap_sort(bp, 2 * n_p)
+    heap_argsort(p_t0, order, n_p)
+    n_act = 0
+    i_s = 0
+    n_iv = 0
+    for k in range(2 * n_p - 1):
+        ta = bp[k]
+        tb = bp[k + 1]
+        if ta >= tmax:
+            break
+        if tb <= ta:
+            continue
+        # chords that ended drop out; chords that start here join (no chord end lies inside (ta, tb))
+        j = 0
+        for m in range(n_act):
+            if p_t1[act[m]] > ta:
+                act[j] = act[m]
+                j += 1
+        n_act = j
+        while i_s < n_p and p_t0[order[i_s]] <= ta:
+            act[n_act] = order[i_s]
+            n_act += 1
+            i_s += 1
+        lo = max(ta, tmin)
+        hi = min(tb, tmax)
+        if n_act == 0 or hi <= lo:
+            continue
+        c = iv_c[n_iv]
+        c[:] = 0.0
+        mag = 0.0
+        for m in range(n_act):
+            i = act[m]
+            span = p_t1[i] - p_t0[i]
+            s0 = min(max((lo - p_t0[i]) / span, 0.0), 1.0)
+            s1 = min(max((hi - p_t0[i]) / span, 0.0), 1.0)
+            subdivide(p_c[i], s0, s1, work)
+            for q in range(NCOEF):
+                c[q] += work[q]
+                mag += abs(work[q])
+        iv_t0[n_iv] = lo
+        iv_t1[n_iv] = hi
+        iv_mag[n_iv] = mag / NCOEF
+        n_iv += 1
+    return n_iv
+
+
+@njit(**NJIT)
+def inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch):
+    """Split the composite intervals at the roots of F - T: returns (pieces, transitions).
+
+    Writes the inside pieces (t0, t1, F's control values on the piece) and the transitions: the t where
+    the class F >= T changes, in order. A transition at a composite boundary (the class differs across
+    it, as at a gap after a discontinuous kernel) counts too; the ray's start tmin never does.
+    With first_only the sweep stops at the first transition (opaque surfaces).
+    """
+    iv_t0, iv_t1, iv_c, iv_mag = scratch[6], scratch[7], scratch[8], scratch[9]
+    o_t0, o_t1, o_c, roots = scratch[10], scratch[11], scratch[12], scratch[13]
+    st_lo, st_hi, st_c, work, g = scratch[14], scratch[15], scratch[16], scratch[17], scratch[18]
+    loc, rising = scratch[19], scratch[20]
+    n_out = 0
+    n_roots = 0
+    inside = False
+    t_prev = tmin  # where the last interval ended; F = 0 < T in gaps
+    for k in range(n_iv):
+        ta = iv_t0[k]
+        tb = iv_t1[k]
+        if ta > t_prev and inside:
+            roots[n_roots] = t_prev
+            n_roots += 1
+            inside = False
+            if first_only:
+                return n_out, n_roots
+        for q in range(NCOEF):
+            g[q] = iv_c[k, q] - threshold
+        start_in = g[0] >= 0.0
+        if start_in != inside:
+            if ta > tmin:
+                roots[n_roots] = ta
+                n_roots += 1
+                if first_only:
+                    return n_out, n_roots
+            inside = start_in
+        w = tb - ta
+        eps_g = NOISE * (threshold + iv_mag[k] * NCOEF)
+        m = clip_roots(g, tol_t / w, eps_g, st_lo, st_hi, st_c, work, loc, rising)
+        s_in = 0.0
+        for j in range(m):
+            if rising[j] == inside:
+                continue  # inconsistent with the class we are in: rounding; keep the class we have
+            roots[n_roots] = ta + loc[j] * w
+            n_roots += 1
+            if inside:
+                _emit(iv_c[k], ta, tb, s_in, loc[j], o_t0, o_t1, o_c, n_out)
+                n_out += 1
+            else:
+                s_in = loc[j]
+            inside = rising[j]
+            if first_only:
+                return n_out, n_roots
+        if inside:
+            _emit(iv_c[k], ta, tb, s_in, 1.0, o_t0, o_t1, o_c, n_out)
+            n_out += 1
+        t_prev = tb
+    if inside and t_prev < tmax:
+        roots[n_roots] = t_prev  # inside up to a chord end: only a kernel with a jump at u = 1 does this
+        n_roots += 1
+    return n_out, n_roots
+
+
+@njit(**NJIT)
+def _emit(c, ta, tb, s0, s1, o_t0, o_t1, o_c, n_out):
+    # ends at 0 and 1 are the interval's own ends, bit for bit, so that adjacent pieces join exactly
+    o_t0[n_out] = ta + s0 * (tb - ta) if s0 > 0.0 else ta
+    o_t1[n_out] = ta + s1 * (tb - ta) if s1 < 1.0 else tb
+    subdivide(c, s0, s1, o_c[n_out])
+
+
+@njit(**NJIT)
+def density_mean(c, mode, threshold):
+    """Mean of rho over a piece whose field has control values c (MODEL.md §4 density modes)."""
+    if mode == DENSITY_UNIFORM:
+        return 1.0
+    m = bernstein_mean(c)
+    if mode == DENSITY_EXCESS:
+        return m - threshold
+    return m
+
+
+@njit(**NJIT)
+def pieces_optical_depth(n_out, mode, threshold, scale, scratch):
+    """tau over the inside pieces: scale times the sum of length x mean density, exact."""
+    o_t0, o_t1, o_c = scratch[10], scratch[11], scratch[12]
+    tau = 0.0
+    for k in range(n_out):
+        tau += (o_t1[k] - o_t0[k]) * density_mean(o_c[k], mode, threshold)
+    return scale * tau
+
+
+@njit(**NJIT)
+def trace_blob(o, d, tmin, tmax, centers, frames, weights, kernel, threshold, tol_t, cand, n_cand,
+               first_only, scratch):
+    """Chords, composite and inside pieces of one ray; grows the scratch when the ray meets more chords
+    than it holds. Returns (scratch, n_pieces, n_transitions)."""
+    n_p = gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, cand, n_cand, scratch)
+    if n_p > capacity_of(scratch):
+        scratch = alloc_scratch(2 * n_p)
+        gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, cand, n_cand, scratch)
+    if n_p == 0:
+        return scratch, 0, 0
+    n_iv = composite(n_p, tmin, tmax, scratch)
+    n_out, n_roots = inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch)
+    return scratch, n_out, n_roots

@@ -1,0 +1,62 @@
+"""Batches of rays through one blob, in parallel: the kernels behind cloudmeta.roots / segments /
+optical_depth / field. Each chunk of rays has its own scratch; every ray is independent, so results do
+not depend on the number of threads."""
+import numpy as np
+from numba import njit, prange
+
+from ..config import NJIT, NJIT_PARALLEL
+from .metaball import falloff, unit_distance2
+from .sweep import alloc_scratch, pieces_optical_depth, trace_blob
+
+#: chords a fresh scratch holds; rays that meet more grow their chunk's scratch once
+INITIAL_CAPACITY = 64
+
+
+@njit(**NJIT_PARALLEL)
+def trace_rays(origins, dirs, tmax, centers, frames, weights, kernel, threshold, tol_t, mode, scale,
+               cap_out, n_chunks, tau, n_roots, roots, n_seg, segs):
+    """For each ray: tau (exact optical depth), the transitions (first cap_out) and the inside
+    segments (adjacent pieces merged; first cap_out). Counts are the true counts, so a count above
+    cap_out tells the caller to trace that ray again with more room. Rays are split into n_chunks
+    contiguous chunks, one scratch each."""
+    n_rays = origins.shape[0]
+    n_balls = centers.shape[0]
+    cand = np.arange(n_balls)
+    for chunk in prange(n_chunks):
+        scratch = alloc_scratch(min(INITIAL_CAPACITY, n_balls))
+        for r in range(chunk * n_rays // n_chunks, (chunk + 1) * n_rays // n_chunks):
+            scratch, n_out, n_tr = trace_blob(origins[r], dirs[r], 0.0, tmax[r], centers, frames, weights,
+                                              kernel, threshold, tol_t, cand, n_balls, False, scratch)
+            tau[r] = pieces_optical_depth(n_out, mode, threshold, scale, scratch)
+            n_roots[r] = n_tr
+            tr = scratch[13]
+            for k in range(min(n_tr, cap_out)):
+                roots[r, k] = tr[k]
+            o_t0, o_t1 = scratch[10], scratch[11]
+            m = 0
+            last_end = -np.inf
+            for k in range(n_out):
+                if m > 0 and o_t0[k] <= last_end:
+                    # continues the previous segment across a composite boundary
+                    last_end = o_t1[k]
+                    if m <= cap_out:
+                        segs[r, m - 1, 1] = last_end
+                    continue
+                if m < cap_out:
+                    segs[r, m, 0] = o_t0[k]
+                    segs[r, m, 1] = o_t1[k]
+                last_end = o_t1[k]
+                m += 1
+            n_seg[r] = m
+
+
+@njit(**NJIT_PARALLEL)
+def field_at(points, centers, frames, weights, kernel, blobbiness, out):
+    """F(x) = sum_i q_i k(u_i(x)) at every point (all balls; the grid sampler culls)."""
+    for p in prange(points.shape[0]):
+        acc = 0.0
+        for i in range(centers.shape[0]):
+            u = unit_distance2(points[p], centers[i], frames[i])
+            if u < 1.0:
+                acc += weights[i] * falloff(kernel, u, blobbiness)
+        out[p] = acc

@@ -1,0 +1,181 @@
+"""Slow, obviously correct numpy references for every kernel. They share no code with cloudmeta's
+kernels: Bernstein values come from the textbook basis sum, curves from solving the interpolation system,
+roots from numpy.roots on a power form in a local variable, integrals from numpy's polynomial integration."""
+import math
+
+import numpy as np
+from numpy.polynomial import polynomial as P
+
+
+def bernstein_basis(n, i, s):
+    return math.comb(n, i) * s ** i * (1.0 - s) ** (n - i)
+
+
+def bernstein_eval(c, s):
+    n = len(c) - 1
+    return sum(c[i] * bernstein_basis(n, i, s) for i in range(n + 1))
+
+
+def fit_bernstein(f, n):
+    """Control values of the degree-n polynomial f on [0, 1] by interpolation at n+1 points."""
+    x = 0.5 - 0.5 * np.cos(np.pi * (np.arange(n + 1) + 0.5) / (n + 1))
+    m = np.array([[bernstein_basis(n, i, xk) for i in range(n + 1)] for xk in x])
+    return np.linalg.solve(m, np.array([f(xk) for xk in x]))
+
+
+def subdivide(c, s0, s1):
+    return fit_bernstein(lambda x: bernstein_eval(c, s0 + x * (s1 - s0)), len(c) - 1)
+
+
+def falloff(kernel, u, b=4.0):
+    u = np.asarray(u, dtype=float)
+    out = np.zeros_like(u)
+    m = u < 1.0
+    v = u[m]
+    if kernel == "wyvill6":
+        out[m] = 1 - 22 / 9 * v + 17 / 9 * v ** 2 - 4 / 9 * v ** 3
+    elif kernel == "murakami4":
+        out[m] = (1 - v) ** 2
+    elif kernel == "nishimura":
+        out[m] = np.where(v <= 1 / 9, 1 - 3 * v, 1.5 * (1 - np.sqrt(v)) ** 2)
+    else:
+        out[m] = np.exp(-b * v)
+    return out
+
+
+def kernel_poly(kernel):
+    """k(u) in the power basis of u, for the polynomial kernels."""
+    return {"wyvill6": [1, -22 / 9, 17 / 9, -4 / 9], "murakami4": [1, -2, 1]}[kernel]
+
+
+def control_values(kernel, a, q=1.0):
+    return fit_bernstein(lambda s: q * falloff(kernel, 1 - 4 * a * s * (1 - s)), 6)
+
+
+def chord_sphere(o, d, c, r):
+    """Textbook: B = (c - o).d, C = |c - o|^2 - R^2, D = B^2 - C; a = D / R^2."""
+    b = np.dot(c - o, d)
+    cc = np.dot(c - o, c - o) - r * r
+    disc = b * b - cc
+    if disc <= 0:
+        return None
+    return b - math.sqrt(disc), b + math.sqrt(disc), disc / (r * r)
+
+
+def unit_frame(radii, rotation):
+    return rotation.T / np.asarray(radii)[:, None]
+
+
+def chord_ellipsoid(o, d, c, radii, rotation):
+    """MODEL.md §2: A = |d'|^2, B = -o'.d', C = |o'|^2 - 1, D = B^2 - A C, a = D / A."""
+    m = unit_frame(radii, rotation)
+    op, dp = m @ (o - c), m @ d
+    A, B, C = dp @ dp, -op @ dp, op @ op - 1.0
+    D = B * B - A * C
+    if D <= 0:
+        return None
+    return (B - math.sqrt(D)) / A, (B + math.sqrt(D)) / A, D / A
+
+
+def field(blob, points):
+    points = np.atleast_2d(points)
+    u = np.einsum("nij,pnj->pni", blob.frames, points[:, None, :] - blob.centers[None]) ** 2
+    return (falloff(blob.kernel, u.sum(axis=2), blob.blobbiness) * blob.weights[None]).sum(axis=1)
+
+
+def _ball_u_poly(blob, i, o, d, ta):
+    """u_i(t) as a power series in x = t - ta (local variable, so the coefficients stay well scaled)."""
+    m = blob.frames[i]
+    p0 = m @ (o + ta * d - blob.centers[i])
+    p1 = m @ d
+    return np.array([p0 @ p0, 2 * p0 @ p1, p1 @ p1])
+
+
+def ray_pieces(blob, o, d, t_max=np.inf):
+    """The ray's field as power-series pieces: list of (ta, tb, coeffs of F in x = t - ta)."""
+    ends = []
+    for i in range(len(blob)):
+        ch = chord_ellipsoid(o, d, blob.centers[i], blob.radii[i], blob.rotations[i])
+        if ch is not None:
+            ends.append((ch[0], ch[1], i))
+    bps = sorted({0.0, *(e[0] for e in ends), *(e[1] for e in ends)})
+    bps = [t for t in bps if 0.0 <= t <= t_max] + ([t_max] if np.isfinite(t_max) else [])
+    pieces = []
+    k = kernel_poly(blob.kernel)
+    for ta, tb in zip(bps[:-1], bps[1:]):
+        if tb <= ta:
+            continue
+        active = [i for (t0, t1, i) in ends if t0 <= ta and t1 >= tb]
+        if not active:
+            continue
+        f = np.zeros(1)
+        for i in active:
+            u = _ball_u_poly(blob, i, o, d, ta)
+            ki = np.zeros(1)
+            upow = np.ones(1)
+            for coef in k:
+                ki = P.polyadd(ki, coef * upow)
+                upow = P.polymul(upow, u)
+            f = P.polyadd(f, blob.weights[i] * ki)
+        pieces.append((ta, tb, f))
+    return pieces
+
+
+def _real_roots_in(poly, length):
+    """Real roots of a power-series polynomial in [0, length], polished by Newton steps."""
+    poly = np.trim_zeros(np.asarray(poly, dtype=float), "b")
+    if len(poly) < 2:
+        return []
+    cand = np.roots(poly[::-1])
+    out = []
+    dpoly = P.polyder(poly)
+    for z in cand:
+        if abs(z.imag) > 1e-6 * max(1.0, length):
+            continue
+        x = z.real
+        for _ in range(4):
+            dv = P.polyval(x, dpoly)
+            if dv != 0:
+                x -= P.polyval(x, poly) / dv
+        if -1e-12 * length <= x <= length * (1 + 1e-12):
+            out.append(min(max(x, 0.0), length))
+    return sorted(out)
+
+
+def crossings(blob, o, d, t_max=np.inf):
+    """t where F - T changes sign along the ray (sign checked just around each candidate)."""
+    o = np.asarray(o, float)
+    d = np.asarray(d, float) / np.linalg.norm(d)
+    out = []
+    for ta, tb, f in ray_pieces(blob, o, d, t_max):
+        g = P.polysub(f, [blob.threshold])
+        w = tb - ta
+        for x in _real_roots_in(g, w):
+            h = 1e-7 * w
+            lo, hi = P.polyval(max(x - h, 0), g), P.polyval(min(x + h, w), g)
+            if (lo >= 0) != (hi >= 0):
+                out.append(ta + x)
+    out = np.array(sorted(out))
+    # a root exactly at a piece boundary is found from both sides
+    if len(out) > 1:
+        keep = np.concatenate([[True], np.diff(out) > 1e-12])
+        out = out[keep]
+    return out
+
+
+def optical_depth(blob, o, d, t_max=np.inf, density="field", scale=1.0):
+    """Exact integral of sigma_t by numpy polynomial integration between consecutive crossings."""
+    o = np.asarray(o, float)
+    d = np.asarray(d, float) / np.linalg.norm(d)
+    tau = 0.0
+    for ta, tb, f in ray_pieces(blob, o, d, t_max):
+        g = P.polysub(f, [blob.threshold])
+        w = tb - ta
+        cuts = [0.0] + _real_roots_in(g, w) + [w]
+        for x0, x1 in zip(cuts[:-1], cuts[1:]):
+            if x1 <= x0 or P.polyval(0.5 * (x0 + x1), g) < 0:
+                continue
+            rho = {"field": f, "excess": g, "uniform": np.ones(1)}[density]
+            anti = P.polyint(rho)
+            tau += P.polyval(x1, anti) - P.polyval(x0, anti)
+    return scale * tau
