@@ -1,0 +1,78 @@
+"""cloudmeta.io: linear OpenEXR out and back, sRGB PNG previews."""
+import numpy as np
+import OpenEXR
+import pytest
+from PIL import Image
+
+from cloudmeta.colour import chromaticities
+from cloudmeta.errors import InputError
+from cloudmeta.io import read_exr, write_exr, write_png
+
+
+def image(h=5, w=7, c=4, seed=1):
+    # float32-representable values so that a FLOAT round trip is exact
+    return np.random.default_rng(seed).uniform(0, 4, (h, w, c)).astype(np.float32).astype(np.float64)
+
+
+def test_01_exr_round_trip_float_rgba(tmp_path):
+    path = tmp_path / "a.exr"
+    im = image()
+    write_exr(im, path)
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        channels = f.channels()
+        header = dict(f.header())  # a copy: File clears its own header dict when it closes
+        assert set(channels) == {"R", "G", "B", "A"}
+        for i, name in enumerate("RGBA"):
+            assert channels[name].pixels.dtype == np.float32
+            assert channels[name].pixels.shape == (5, 7)
+            np.testing.assert_array_equal(channels[name].pixels, im[:, :, i])
+    assert header["chromaticities"] == pytest.approx(chromaticities(), abs=1e-7)
+    back, header2 = read_exr(path)
+    assert back.dtype == np.float32 and back.shape == (5, 7, 4)
+    np.testing.assert_array_equal(back, im)
+    assert "chromaticities" in header2
+
+
+def test_02_exr_half_rgb(tmp_path):
+    path = tmp_path / "b.exr"
+    im = image(c=3)
+    write_exr(im, path, colourspace="ACEScg", half=True)
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        assert set(f.channels()) == {"R", "G", "B"}
+        assert all(ch.pixels.dtype == np.float16 for ch in f.channels().values())
+    back, header = read_exr(path)
+    assert back.shape == (5, 7, 3)
+    np.testing.assert_allclose(back, im, rtol=1e-3)
+    assert header["chromaticities"] == pytest.approx(chromaticities("ACEScg"), abs=1e-7)
+
+
+@pytest.mark.parametrize("bad, fragment", [
+    (np.zeros((4, 4)), "shape"),
+    (np.zeros((4, 4, 2)), "shape"),
+    (np.zeros((0, 4, 3)), "shape"),
+    (np.full((2, 2, 3), np.nan), "finite"),
+    (np.full((2, 2, 3), "x"), "real numbers"),
+])
+def test_03_write_exr_refuses_bad_images(tmp_path, bad, fragment):
+    with pytest.raises(InputError, match=fragment) as exc:
+        write_exr(bad, tmp_path / "c.exr")
+    assert str(exc.value).startswith("image")
+
+
+def test_04_half_overflow_is_an_error(tmp_path):
+    with pytest.raises(InputError, match="HALF"):
+        write_exr(np.full((2, 2, 3), 1e6), tmp_path / "d.exr", half=True)
+
+
+def test_05_png_is_srgb_rgb(tmp_path):
+    path = tmp_path / "a.png"
+    im = np.zeros((3, 4, 4))
+    im[0, 0, :3] = 0.5
+    im[1, 1, :3] = 0.25
+    im[:, :, 3] = 0.3  # alpha is dropped: RGB is already over the background
+    write_png(im, path, exposure=1.0)
+    px = np.asarray(Image.open(path))
+    assert px.shape == (3, 4, 3) and px.dtype == np.uint8
+    np.testing.assert_array_equal(px[0, 0], [255, 255, 255])
+    np.testing.assert_array_equal(px[1, 1], [188, 188, 188])
+    assert px[2, 3].tolist() == [0, 0, 0]
