@@ -1,0 +1,291 @@
+"""Single scattering along camera rays (MODEL.md §5), and the image loop.
+
+A camera ray is traced through every medium by the engine; each inside piece carries sigma_t as a
+Bernstein polynomial. Where pieces of several media overlap, the ray is cut into elementary intervals
+and their polynomials are added, exactly as the engine composites balls. On each interval:
+
+- the view optical depth tau(0, t) is exact at any t (the antiderivative of a Bernstein polynomial);
+- the in-scattering integral is a Gauss-Legendre rule on steps no thicker than ``max_tau`` and no longer
+  than ``max_length``, with an exact shadow ray from every node to every light.
+
+Media are packed as one list of balls with offsets ``med_start``; lights as kind (0 directional,
+1 point), vector (towards-light direction or position) and RGB (irradiance or intensity).
+"""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..config import NJIT, NJIT_PARALLEL
+from .bernstein import NCOEF, bernstein_cumulative, bernstein_mean, subdivide
+from .optics import phase
+from .sweep import (DENSITY_EXCESS, DENSITY_UNIFORM, alloc_scratch, heap_argsort, heap_sort,
+                    pieces_optical_depth, trace_blob)
+
+DIRECTIONAL = 0
+POINT = 1
+
+
+@njit(**NJIT)
+def alloc_ray_pieces(capacity):
+    """Pieces of all media on one ray: t0, t1, sigma_t control values, medium; plus the interval sweep's
+    breakpoints, start order, active list and the active pieces' polynomials on the current interval."""
+    p = max(capacity, 1)
+    return (np.empty(p), np.empty(p), np.empty((p, NCOEF)), np.empty(p, np.int64),
+            np.empty(2 * p), np.empty(p, np.int64), np.empty(p, np.int64), np.empty((p, NCOEF)))
+
+
+@njit(**NJIT)
+def collect_media(o, d, tmax, centers, frames, weights, med_start, med_kernel, med_threshold, med_mode,
+                  med_scale, tol_t, scratch, rp):
+    """Trace the ray through every medium; copy each inside piece, as sigma_t, into rp.
+    Returns (scratch, rp, number of pieces)."""
+    n = 0
+    cand = np.arange(centers.shape[0])  # one small allocation per call: the BVH will replace it
+    for m in range(med_start.shape[0] - 1):
+        a = med_start[m]
+        b = med_start[m + 1]
+        scratch, n_out, _ = trace_blob(o, d, 0.0, tmax, centers, frames, weights, med_kernel[m],
+                                       med_threshold[m], tol_t, cand[a:b], b - a, False, scratch)
+        if n + n_out > rp[0].shape[0]:
+            bigger = alloc_ray_pieces(2 * (n + n_out))
+            bigger[0][:n] = rp[0][:n]
+            bigger[1][:n] = rp[1][:n]
+            bigger[2][:n] = rp[2][:n]
+            bigger[3][:n] = rp[3][:n]
+            rp = bigger
+        o_t0, o_t1, o_c = scratch[10], scratch[11], scratch[12]
+        scale = med_scale[m]
+        for k in range(n_out):
+            rp[0][n] = o_t0[k]
+            rp[1][n] = o_t1[k]
+            for q in range(NCOEF):
+                if med_mode[m] == DENSITY_UNIFORM:
+                    rp[2][n, q] = scale
+                elif med_mode[m] == DENSITY_EXCESS:
+                    rp[2][n, q] = scale * (o_c[k, q] - med_threshold[m])
+                else:
+                    rp[2][n, q] = scale * o_c[k, q]
+            rp[3][n] = m
+            n += 1
+    return scratch, rp, n
+
+
+@njit(**NJIT)
+def shadow_transmittance(x, l, tmax, centers, frames, weights, med_start, med_kernel, med_threshold,
+                         med_mode, med_scale, tol_t, tau_stop, scratch):
+    """T_l = exp(-tau) from x along l up to tmax through every medium; stops once tau > tau_stop."""
+    tau = 0.0
+    cand = np.arange(centers.shape[0])
+    for m in range(med_start.shape[0] - 1):
+        a = med_start[m]
+        b = med_start[m + 1]
+        scratch, n_out, _ = trace_blob(x, l, 0.0, tmax, centers, frames, weights, med_kernel[m],
+                                       med_threshold[m], tol_t, cand[a:b], b - a, False, scratch)
+        tau += pieces_optical_depth(n_out, med_mode[m], med_threshold[m], med_scale[m], scratch)
+        if tau > tau_stop:
+            break
+    return scratch, math.exp(-tau)
+
+
+@njit(**NJIT)
+def _bernstein_at(c, s, work):
+    for i in range(NCOEF):
+        work[i] = c[i]
+    for r in range(1, NCOEF):
+        for i in range(NCOEF - r):
+            work[i] = (1.0 - s) * work[i] + s * work[i + 1]
+    return work[0]
+
+
+@njit(**NJIT)
+def ray_radiance(o, d, centers, frames, weights, med_start, med_kernel, med_threshold, med_mode, med_scale,
+                 med_albedo, med_phase, light_kind, light_vec, light_rgb, gl_x, gl_w, max_tau, max_length,
+                 cutoff, tol_t, background, ambient, scratch, rp, light_buf, out):
+    """out[:3] = radiance of the camera ray o + t d, out[3] = its transmittance T(0, inf).
+
+    Returns (scratch, rp): the work arrays, grown if this ray needed more room.
+    """
+    scratch, rp, n = collect_media(o, d, np.inf, centers, frames, weights, med_start, med_kernel,
+                                   med_threshold, med_mode, med_scale, tol_t, scratch, rp)
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = 0.0
+    if n == 0:
+        out[0] = background[0]
+        out[1] = background[1]
+        out[2] = background[2]
+        out[3] = 1.0
+        return scratch, rp
+    p_t0, p_t1, p_c, p_m, bp, order, act, act_c = rp
+    work = scratch[17][0]
+    cum = np.empty(NCOEF + 1)  # per ray; tiny
+    S = np.empty(NCOEF)
+    n_lights = light_kind.shape[0]
+    has_ambient = ambient[0] > 0.0 or ambient[1] > 0.0 or ambient[2] > 0.0
+    tau_stop = -math.log(cutoff) if cutoff > 0.0 else np.inf
+    for k in range(n):
+        bp[2 * k] = p_t0[k]
+        bp[2 * k + 1] = p_t1[k]
+    heap_sort(bp, 2 * n)
+    heap_argsort(p_t0, order, n)
+    n_act = 0
+    i_s = 0
+    tau_acc = 0.0
+    shading = n_lights > 0 or has_ambient
+    for k in range(2 * n - 1):
+        ta = bp[k]
+        tb = bp[k + 1]
+        if tb <= ta:
+            continue
+        j = 0
+        for q in range(n_act):
+            if p_t1[act[q]] > ta:
+                act[j] = act[q]
+                j += 1
+        n_act = j
+        while i_s < n and p_t0[order[i_s]] <= ta:
+            act[n_act] = order[i_s]
+            n_act += 1
+            i_s += 1
+        if n_act == 0:
+            continue
+        # sigma_t of every active piece on [ta, tb], and their sum
+        S[:] = 0.0
+        scatters = False
+        for q in range(n_act):
+            i = act[q]
+            span = p_t1[i] - p_t0[i]
+            s0 = min(max((ta - p_t0[i]) / span, 0.0), 1.0)
+            s1 = min(max((tb - p_t0[i]) / span, 0.0), 1.0)
+            subdivide(p_c[i], s0, s1, act_c[q])
+            for c in range(NCOEF):
+                S[c] += act_c[q, c]
+            scatters = scatters or med_albedo[p_m[i]] > 0.0
+        w = tb - ta
+        tau_iv = w * bernstein_mean(S)
+        if shading and scatters:
+            n_steps = max(1, int(math.ceil(max(tau_iv / max_tau, w / max_length))))
+            for st in range(n_steps):
+                sa = st / n_steps
+                sb = (st + 1) / n_steps
+                for g in range(gl_x.shape[0]):
+                    s = sa + (sb - sa) * gl_x[g]
+                    t = ta + s * w
+                    t_view = math.exp(-(tau_acc + w * bernstein_cumulative(S, s, cum)))
+                    px = o[0] + t * d[0]
+                    py = o[1] + t * d[1]
+                    pz = o[2] + t * d[2]
+                    pos = np.array((px, py, pz))  # small; hoisted by LLVM in practice
+                    # light arriving at the node, per light: cos theta and E T_l
+                    for li in range(n_lights):
+                        if light_kind[li] == DIRECTIONAL:
+                            lx, ly, lz = light_vec[li, 0], light_vec[li, 1], light_vec[li, 2]
+                            e_scale = 1.0
+                            l_max = np.inf
+                        else:
+                            lx = light_vec[li, 0] - px
+                            ly = light_vec[li, 1] - py
+                            lz = light_vec[li, 2] - pz
+                            dist2 = lx * lx + ly * ly + lz * lz
+                            l_max = math.sqrt(dist2)
+                            lx /= l_max
+                            ly /= l_max
+                            lz /= l_max
+                            e_scale = 1.0 / dist2
+                        light_buf[li, 0] = lx * d[0] + ly * d[1] + lz * d[2]
+                        scratch, t_l = shadow_transmittance(pos, np.array((lx, ly, lz)), l_max, centers, frames,
+                                                            weights, med_start, med_kernel, med_threshold,
+                                                            med_mode, med_scale, tol_t, tau_stop, scratch)
+                        for c in range(3):
+                            light_buf[li, 1 + c] = light_rgb[li, c] * e_scale * t_l
+                    weight = gl_w[g] * (sb - sa) * w * t_view
+                    for q in range(n_act):
+                        m = p_m[act[q]]
+                        sigma_s = med_albedo[m] * _bernstein_at(act_c[q], s, work)
+                        if sigma_s == 0.0:
+                            continue
+                        for li in range(n_lights):
+                            ph = phase(med_phase[m, 0], med_phase[m, 1], med_phase[m, 2], med_phase[m, 3],
+                                       light_buf[li, 0])
+                            for c in range(3):
+                                out[c] += weight * sigma_s * ph * light_buf[li, 1 + c]
+                        for c in range(3):
+                            out[c] += weight * sigma_s * ambient[c]
+        tau_acc += tau_iv
+        if tau_acc > tau_stop:
+            shading = False  # the rest of the ray is seen through less than `cutoff`
+    t_end = math.exp(-tau_acc)
+    for c in range(3):
+        out[c] += background[c] * t_end
+    out[3] = t_end
+    return scratch, rp
+
+
+@njit(**NJIT)
+def _mix64(z):
+    """splitmix64's finaliser: a counter-based hash, so jitter depends only on (pixel, sample)."""
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(**NJIT)
+def jitter(seed, pixel, sample, dim):
+    key = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(pixel) * np.uint64(0x632BE59BD9B4E019)
+           + np.uint64(sample) * np.uint64(0x85EBCA77C2B2AE63) + np.uint64(dim))
+    return float(_mix64(key) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(**NJIT_PARALLEL)
+def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_right, cam_up, n_chunks,
+                centers, frames, weights, med_start, med_kernel, med_threshold, med_mode, med_scale,
+                med_albedo, med_phase, light_kind, light_vec, light_rgb, gl_x, gl_w, max_tau, max_length,
+                cutoff, tol_t, background, ambient, image):
+    """Rows [row0, row1) of the image (H x W x 4, row 0 at the top), written into image[row0:row1].
+
+    cam_right and cam_up are scaled to the half-extent of the image plane at distance 1. With spp > 1
+    the samples are stratified on a ceil(sqrt(spp))^2 grid and jittered by a hash of (pixel, sample).
+    """
+    n_pix = (row1 - row0) * width
+    strata = int(math.ceil(math.sqrt(spp)))
+    for chunk in prange(n_chunks):
+        scratch = alloc_scratch(64)
+        rp = alloc_ray_pieces(64)
+        light_buf = np.empty((max(light_kind.shape[0], 1), 4))
+        px_out = np.empty(4)
+        d = np.empty(3)
+        for p in range(chunk * n_pix // n_chunks, (chunk + 1) * n_pix // n_chunks):
+            i = row0 + p // width
+            j = p % width
+            acc0 = 0.0
+            acc1 = 0.0
+            acc2 = 0.0
+            acc3 = 0.0
+            for s in range(spp):
+                if spp == 1:
+                    jx = 0.5
+                    jy = 0.5
+                else:
+                    pix = i * width + j
+                    jx = ((s % strata) + jitter(seed, pix, s, 0)) / strata
+                    jy = (((s // strata) % strata) + jitter(seed, pix, s, 1)) / strata
+                x = 2.0 * (j + jx) / width - 1.0
+                y = 1.0 - 2.0 * (i + jy) / height
+                for c in range(3):
+                    d[c] = cam_fwd[c] + x * cam_right[c] + y * cam_up[c]
+                norm = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+                for c in range(3):
+                    d[c] /= norm
+                scratch, rp = ray_radiance(cam_pos, d, centers, frames, weights, med_start, med_kernel,
+                                           med_threshold, med_mode, med_scale, med_albedo, med_phase,
+                                           light_kind, light_vec, light_rgb, gl_x, gl_w, max_tau, max_length,
+                                           cutoff, tol_t, background, ambient, scratch, rp, light_buf, px_out)
+                acc0 += px_out[0]
+                acc1 += px_out[1]
+                acc2 += px_out[2]
+                acc3 += px_out[3]
+            image[i, j, 0] = acc0 / spp
+            image[i, j, 1] = acc1 / spp
+            image[i, j, 2] = acc2 / spp
+            image[i, j, 3] = 1.0 - acc3 / spp  # alpha = 1 - T(0, t_end)

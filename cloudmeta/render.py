@@ -1,0 +1,168 @@
+"""Render a scene: pack it into arrays once, then run the radiance kernel over bands of rows.
+
+Quality settings (``render:`` in the scene, MODEL.md §9). ``quality`` picks a preset; any of the other
+keys overrides that preset's value:
+
+=============== ======= ======= ======= ========== ====================================================
+key             draft   default fine    reference  meaning
+=============== ======= ======= ======= ========== ====================================================
+nodes           2       3       4       6          Gauss-Legendre nodes per quadrature step
+max_tau         1.0     0.5     0.25    0.05       largest optical depth of one step
+max_length      1/8     1/16    1/32    1/128      longest step, as a fraction of the scene's diagonal
+                                                   (an explicit ``max_length`` is in scene units)
+cutoff          1e-2    1e-3    1e-4    0          stop shading once the view transmittance is below
+root_tolerance  1e-9    1e-9    1e-9    1e-9       root tolerance, relative to the scene's diagonal
+=============== ======= ======= ======= ========== ====================================================
+
+The optical depth, the view transmittance and the shadow transmittance are exact at every setting;
+the settings only trade the quadrature of the in-scattering integral against time.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from .engine import DENSITY_MODES, n_chunks
+from .errors import CloudmetaError
+from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
+from .kernels.radiance import DIRECTIONAL, POINT, render_rows
+from .scene import DirectionalLight, RenderSettings, Scene
+
+PRESETS = {
+    "draft": dict(nodes=2, max_tau=1.0, max_length=1 / 8, cutoff=1e-2, root_tolerance=1e-9),
+    "default": dict(nodes=3, max_tau=0.5, max_length=1 / 16, cutoff=1e-3, root_tolerance=1e-9),
+    "fine": dict(nodes=4, max_tau=0.25, max_length=1 / 32, cutoff=1e-4, root_tolerance=1e-9),
+    "reference": dict(nodes=6, max_tau=0.05, max_length=1 / 128, cutoff=0.0, root_tolerance=1e-9),
+}
+PHASES = {"isotropic": ISOTROPIC, "hg": HG, "double_hg": DOUBLE_HG, "rayleigh": RAYLEIGH}
+#: rows per kernel call: the progress bar moves once per band
+BAND_ROWS = 8
+
+
+@dataclass(frozen=True)
+class Quality:
+    """The resolved quadrature settings of one render (all lengths in scene units)."""
+    nodes: int
+    max_tau: float
+    max_length: float
+    cutoff: float
+    tol_t: float
+
+
+def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
+    preset = PRESETS[settings.quality]
+    pick = lambda key: preset[key] if getattr(settings, key) is None else getattr(settings, key)  # noqa: E731
+    max_length = preset["max_length"] * diagonal if settings.max_length is None else settings.max_length
+    return Quality(nodes=int(pick("nodes")), max_tau=float(pick("max_tau")), max_length=float(max_length),
+                   cutoff=float(pick("cutoff")), tol_t=float(pick("root_tolerance")) * diagonal)
+
+
+@dataclass(frozen=True)
+class PackedMedia:
+    """Every medium's balls in one set of arrays, with per-medium parameters (what the kernels read)."""
+    centers: np.ndarray
+    frames: np.ndarray
+    weights: np.ndarray
+    start: np.ndarray      # (M + 1,) ball offsets
+    kernel: np.ndarray
+    threshold: np.ndarray
+    mode: np.ndarray
+    scale: np.ndarray
+    albedo: np.ndarray
+    phase: np.ndarray      # (M, 4): kind, g1, g2, w
+
+    def args(self):
+        return (self.centers, self.frames, self.weights, self.start, self.kernel, self.threshold, self.mode,
+                self.scale, self.albedo, self.phase)
+
+
+def pack_media(media) -> PackedMedia:
+    blobs = [m.blob for m in media]
+    counts = [len(b) for b in blobs]
+    phase = np.zeros((len(media), 4))
+    for i, m in enumerate(media):
+        p = m.phase
+        g1 = p.g if p.type == "hg" else p.g1
+        phase[i] = (PHASES[p.type], g1, p.g2, p.w)
+    cat = lambda attr, empty: (np.ascontiguousarray(np.concatenate([getattr(b, attr) for b in blobs]))  # noqa: E731
+                               if blobs else empty)
+    return PackedMedia(
+        centers=cat("centers", np.zeros((0, 3))), frames=cat("frames", np.zeros((0, 3, 3))),
+        weights=cat("weights", np.zeros(0)), start=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+        kernel=np.array([b.kernel_id for b in blobs], np.int64),
+        threshold=np.array([b.threshold for b in blobs], np.float64),
+        mode=np.array([DENSITY_MODES[m.density.mode] for m in media], np.int64),
+        scale=np.array([m.density.scale for m in media], np.float64),
+        albedo=np.array([m.albedo for m in media], np.float64), phase=phase)
+
+
+def pack_lights(lights):
+    kind = np.array([DIRECTIONAL if isinstance(l, DirectionalLight) else POINT for l in lights], np.int64)
+    vec = np.array([l.direction if isinstance(l, DirectionalLight) else l.position for l in lights],
+                   np.float64).reshape(-1, 3)
+    rgb = np.array([l.irradiance if isinstance(l, DirectionalLight) else l.intensity for l in lights],
+                   np.float64).reshape(-1, 3)
+    return kind, vec, rgb
+
+
+def camera_basis(camera, width, height):
+    """Forward, and right / up scaled to the image plane's half-extent at distance 1 (MODEL.md §8)."""
+    fwd = camera.look_at - camera.position
+    fwd = fwd / np.linalg.norm(fwd)
+    right = np.cross(fwd, camera.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    half_h = math.tan(math.radians(camera.fov) / 2)
+    return fwd, right * half_h * width / height, up * half_h
+
+
+def gauss_legendre(nodes):
+    """Nodes and weights on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
+    """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha."""
+    if scene.surfaces:
+        raise CloudmetaError("opaque surfaces are not rendered yet (surfaces: is reserved for them)")
+    if scene.render.shadows != "exact":
+        raise CloudmetaError(f"render.shadows: {scene.render.shadows!r} is not available yet; use 'exact'")
+    lo, hi = scene.bbox()
+    q = resolve_quality(scene.render, float(np.linalg.norm(hi - lo)))
+    media = pack_media(scene.media)
+    kind, vec, rgb = pack_lights(scene.lights)
+    gl_x, gl_w = gauss_legendre(q.nodes)
+    w, h, spp = scene.image.width, scene.image.height, scene.image.spp
+    fwd, right, up = camera_basis(scene.camera, w, h)
+    ambient = np.zeros(3) if scene.ambient is None else np.asarray(scene.ambient, np.float64)
+    background = np.asarray(scene.background, np.float64)
+    image = np.zeros((h, w, 4), np.float64)
+    bar = _progress(h, progress)
+    for row0 in range(0, h, BAND_ROWS):
+        row1 = min(h, row0 + BAND_ROWS)
+        render_rows(row0, row1, w, h, spp, seed, np.asarray(scene.camera.position, np.float64), fwd, right, up,
+                    n_chunks((row1 - row0) * w), *media.args(), kind, vec, rgb, gl_x, gl_w, q.max_tau,
+                    q.max_length, q.cutoff, q.tol_t, background, ambient, image)
+        bar.update(row1 - row0)
+    bar.close()
+    return image.astype(np.float32)
+
+
+class _NoBar:
+    def update(self, n):
+        pass
+
+    def close(self):
+        pass
+
+
+def _progress(rows, enabled):
+    if not enabled:
+        return _NoBar()
+    from tqdm import tqdm
+    return tqdm(total=rows, unit="row", desc="render", leave=False, mininterval=0.5)
