@@ -119,6 +119,7 @@ class Blob:
         # axis-aligned box of each support: half-width along axis k is |row k of Q S|
         half = np.sqrt(np.einsum("nkj,nj->nk", self.rotations ** 2, self.radii ** 2))
         self.bounds = np.ascontiguousarray(np.concatenate([centers - half, centers + half], axis=1))
+        self._bvh = None
         for arr in (self.centers, self.radii, self.weights, self.rotations, self.frames, self.bounds):
             arr.setflags(write=False)
 
@@ -137,6 +138,14 @@ class Blob:
     def bbox(self):
         """(lo, hi) of the union of the balls' supports."""
         return self.bounds[:, :3].min(axis=0), self.bounds[:, 3:].max(axis=0)
+
+    @property
+    def bvh(self):
+        """(node_box, node_a, node_b, node_n, items): the BVH over the supports, built on first use."""
+        if self._bvh is None:
+            from .kernels.bvh import build_bvh
+            self._bvh = build_bvh(self.bounds, 0)
+        return self._bvh
 
     @property
     def diagonal(self):

@@ -1,15 +1,50 @@
 """The one place where numba compile flags are set.
 
 ``fastmath`` stays off: the engine's promise is 1e-9 relative accuracy, and reassociation would break
-the bit-for-bit determinism of renders across thread counts. ``cache`` writes compiled kernels next to
-the sources (``__pycache__``) so that a second process starts without compiling.
-"""
-import os
+the bit-for-bit determinism of renders across thread counts.
 
-CACHE = os.environ.get("CLOUDMETA_NO_CACHE", "") == ""
+``cache`` keeps compiled kernels between processes. numba checks only the timestamp of the file that
+holds a cached function, not of the functions it calls in other files, so after an edit to, say,
+``bernstein.py`` a cached caller would run the old code. The cache therefore lives in a folder named
+after a hash of every kernel source: any edit starts a fresh cache. The folder is
+``$CLOUDMETA_CACHE_DIR`` or ``~/.cache/cloudmeta``; ``NUMBA_CACHE_DIR``, when set, is respected as it is,
+and ``CLOUDMETA_NO_CACHE=1`` turns caching off.
+"""
+import hashlib
+import os
+from pathlib import Path
+
+import numba
+
+
+def _kernel_source_hash():
+    h = hashlib.sha1(numba.__version__.encode())
+    for path in sorted((Path(__file__).parent / "kernels").glob("*.py")):
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _set_cache_dir():
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return True
+    base = Path(os.environ.get("CLOUDMETA_CACHE_DIR", Path.home() / ".cache" / "cloudmeta"))
+    folder = base / f"numba-{_kernel_source_hash()}"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return False  # nowhere to write: compile every time rather than risk a stale cache
+    numba.config.CACHE_DIR = str(folder)
+    return True
+
+
+CACHE = os.environ.get("CLOUDMETA_NO_CACHE", "") == "" and _set_cache_dir()
 FASTMATH = False
 
 #: flags for serial kernels
 NJIT = dict(cache=CACHE, fastmath=FASTMATH, nogil=True, error_model="numpy")
+#: flags for the small helpers of hot loops: inlined into their callers at numba's IR level, so that no
+#: call boundary (and no reference counting of the arrays passed) remains in the loop
+NJIT_INLINE = dict(NJIT, inline="always")
 #: flags for the few kernels that loop over rays or pixels with prange
 NJIT_PARALLEL = dict(NJIT, parallel=True)

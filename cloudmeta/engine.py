@@ -44,12 +44,13 @@ def prepare_rays(origins, directions, t_max=np.inf):
     if len(o) != len(d) and len(o) != 1 and len(d) != 1:
         raise InputError(f"origins, directions: expected the same number of rays, got {len(o)} and {len(d)}")
     n = max(len(o), len(d))
-    o = np.ascontiguousarray(np.broadcast_to(o, (n, 3)))
+    # np.array copies: writable and contiguous every time, so numba sees one type and compiles once
+    o = np.array(np.broadcast_to(o, (n, 3)))
     length = np.linalg.norm(d, axis=1)
     bad = np.flatnonzero(length == 0.0)
     if len(bad):
         raise InputError(f"directions[{bad[0]}]: expected a non-zero vector")
-    d = np.ascontiguousarray(np.broadcast_to(d / length[:, None], (n, 3)))
+    d = np.array(np.broadcast_to(d / length[:, None], (n, 3)))
     tm = np.asarray(t_max, dtype=np.float64)
     if tm.ndim == 0:
         tm = np.full(n, float(tm))
@@ -58,7 +59,7 @@ def prepare_rays(origins, directions, t_max=np.inf):
     bad = np.flatnonzero(np.isnan(tm) | (tm <= 0.0))
     if len(bad):
         raise InputError(f"t_max[{bad[0]}]: expected a number > 0 (inf allowed), got {tm[bad[0]]}")
-    return o, d, np.ascontiguousarray(tm)
+    return o, d, np.array(tm)
 
 
 def root_tolerance(blob, tolerance=ROOT_TOLERANCE):
@@ -90,7 +91,7 @@ def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1
     roots = np.empty((n, cap))
     segs = np.empty((n, cap, 2))
     args = (blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.threshold, tol,
-            DENSITY_MODES[density], float(scale))
+            DENSITY_MODES[density], float(scale), blob.bvh)
     trace_rays(o, d, tm, *args, cap, n_chunks(n), tau, n_roots, roots, n_seg, segs)
     roots_list = [roots[i, :n_roots[i]].copy() for i in range(n)]
     segs_list = [segs[i, :n_seg[i]].copy() for i in range(n)]
@@ -128,7 +129,7 @@ def optical_depth(blob, origins, directions, t_max=np.inf, density="field", scal
 def field(blob, points):
     """(N,) F(x) at the points."""
     blob = check_blob(blob)
-    p = np.ascontiguousarray(_points("points", points))
+    p = np.array(_points("points", points))
     out = np.empty(len(p))
     field_at(p, blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, out)
     return out

@@ -1,11 +1,12 @@
 """Bernstein polynomials on [0, 1], kept in local form (never a global power basis).
 
-Every curve in the engine has DEGREE 6 (NCOEF = 7 control values); lower-degree kernels are elevated.
+Every curve in the engine has DEGREE 6 (NCOEF = 7 control values); lower-degree kernels are elevated,
+and the hot routines are written out for that degree.
 """
 import numpy as np
 from numba import njit
 
-from ..config import NJIT
+from ..config import NJIT, NJIT_INLINE
 
 DEGREE = 6
 NCOEF = DEGREE + 1
@@ -24,26 +25,73 @@ def bernstein_eval(c, s):
     return w[0]
 
 
-@njit(**NJIT)
-def subdivide(c, s0, s1, out):
-    """Control values of the same curve on [s0, s1] (0 <= s0 < s1 <= 1), reparametrised to [0, 1].
+@njit(**NJIT_INLINE)
+def _casteljau_rows(c0, c1, c2, c3, c4, c5, c6, t):
+    """All rows of de Casteljau's triangle at t for a degree-6 curve, on scalars: the lerps of one row
+    are independent, so they run in parallel instead of waiting on each other as an in-place loop does.
+    Returns the left edge (control values on [0, t]) and the right edge (on [t, 1])."""
+    u = 1.0 - t
+    p0 = u * c0 + t * c1
+    p1 = u * c1 + t * c2
+    p2 = u * c2 + t * c3
+    p3 = u * c3 + t * c4
+    p4 = u * c4 + t * c5
+    p5 = u * c5 + t * c6
+    q0 = u * p0 + t * p1
+    q1 = u * p1 + t * p2
+    q2 = u * p2 + t * p3
+    q3 = u * p3 + t * p4
+    q4 = u * p4 + t * p5
+    r0 = u * q0 + t * q1
+    r1 = u * q1 + t * q2
+    r2 = u * q2 + t * q3
+    r3 = u * q3 + t * q4
+    s0 = u * r0 + t * r1
+    s1 = u * r1 + t * r2
+    s2 = u * r2 + t * r3
+    v0 = u * s0 + t * s1
+    v1 = u * s1 + t * s2
+    w0 = u * v0 + t * v1
+    return (c0, p0, q0, r0, s0, v0, w0), (w0, v1, s2, r3, q4, p5, c6)
 
-    Two de Casteljau splits: keep [0, s1], then the part of that from s0 / s1 on.
-    """
-    n = c.shape[0]
-    for i in range(n):
-        out[i] = c[i]
+
+@njit(**NJIT_INLINE)
+def subdivide(c, s0, s1, out):
+    """Control values of the same degree-6 curve on [s0, s1] (0 <= s0 < s1 <= 1), reparametrised to
+    [0, 1]: keep [0, s1] of a split at s1, then the part from s0 / s1 on of a split of that."""
+    c0, c1, c2, c3, c4, c5, c6 = c[0], c[1], c[2], c[3], c[4], c[5], c[6]
     if s1 < 1.0:
-        # left part of a split at s1: out[i] becomes the first point of the i-th de Casteljau row
-        for r in range(1, n):
-            for i in range(n - 1, r - 1, -1):
-                out[i] = (1.0 - s1) * out[i - 1] + s1 * out[i]
+        (c0, c1, c2, c3, c4, c5, c6), _ = _casteljau_rows(c0, c1, c2, c3, c4, c5, c6, s1)
     if s0 > 0.0:
-        u = s0 / s1
-        # right part of a split at u: out[i] becomes the last point of the row
-        for r in range(1, n):
-            for i in range(n - r):
-                out[i] = (1.0 - u) * out[i] + u * out[i + 1]
+        _, (c0, c1, c2, c3, c4, c5, c6) = _casteljau_rows(c0, c1, c2, c3, c4, c5, c6, s0 / s1)
+    out[0] = c0
+    out[1] = c1
+    out[2] = c2
+    out[3] = c3
+    out[4] = c4
+    out[5] = c5
+    out[6] = c6
+
+
+@njit(**NJIT_INLINE)
+def split(c, t, left, right):
+    """One de Casteljau split at t: left gets the curve on [0, t], right the curve on [t, 1]."""
+    (l0, l1, l2, l3, l4, l5, l6), (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(
+        c[0], c[1], c[2], c[3], c[4], c[5], c[6], t)
+    left[0] = l0
+    left[1] = l1
+    left[2] = l2
+    left[3] = l3
+    left[4] = l4
+    left[5] = l5
+    left[6] = l6
+    right[0] = r0
+    right[1] = r1
+    right[2] = r2
+    right[3] = r3
+    right[4] = r4
+    right[5] = r5
+    right[6] = r6
 
 
 @njit(**NJIT)

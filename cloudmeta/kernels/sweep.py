@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from ..config import NJIT
-from .bernstein import NCOEF, bernstein_mean, subdivide
+from .bernstein import NCOEF, bernstein_mean, split, subdivide
 from .clipping import STACK_DEPTH, clip_roots
 from .metaball import chord, control_values
 
@@ -47,11 +47,24 @@ def capacity_of(scratch):
     return scratch[0].shape[0]
 
 
+#: below this many items an insertion sort beats the heap sort
+SMALL_SORT = 24
+
+
 @njit(**NJIT)
 def heap_argsort(keys, idx, n):
     """Sort idx[:n] (a permutation of 0..n-1, filled here) by keys, in place, without allocating."""
     for i in range(n):
         idx[i] = i
+    if n <= SMALL_SORT:
+        for i in range(1, n):
+            v = idx[i]
+            j = i - 1
+            while j >= 0 and keys[idx[j]] > keys[v]:
+                idx[j + 1] = idx[j]
+                j -= 1
+            idx[j + 1] = v
+        return
     for start in range(n // 2 - 1, -1, -1):
         _sift(keys, idx, start, n)
     for end in range(n - 1, 0, -1):
@@ -76,6 +89,15 @@ def _sift(keys, idx, root, n):
 @njit(**NJIT)
 def heap_sort(a, n):
     """Sort a[:n] in place."""
+    if n <= SMALL_SORT:
+        for i in range(1, n):
+            v = a[i]
+            j = i - 1
+            while j >= 0 and a[j] > v:
+                a[j + 1] = a[j]
+                j -= 1
+            a[j + 1] = v
+        return
     for start in range(n // 2 - 1, -1, -1):
         _sift_values(a, start, n)
     for end in range(n - 1, 0, -1):
@@ -124,13 +146,15 @@ def gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, cand, n_ca
 def composite(n_p, tmin, tmax, scratch):
     """Cut every chord's curve to the intervals between consecutive chord ends and add them up.
 
-    Writes the intervals (clipped to [tmin, tmax]) with F's control values and the sum of the
-    magnitudes of the added control values (the scale of F's rounding error); returns their number.
+    Writes the intervals (clipped to [tmin, tmax]) with F's control values and the mean magnitude of
+    the added control values (the scale of F's rounding error); returns their number. Each active
+    chord keeps the rest of its curve, [ta, t1], in place of its control values (p_t0 becomes ta), so
+    one de Casteljau split per chord and interval gives both the part on the interval and the rest.
     """
     p_t0, p_t1, p_c = scratch[0], scratch[1], scratch[2]
     bp, order, act = scratch[3], scratch[4], scratch[5]
     iv_t0, iv_t1, iv_c, iv_mag = scratch[6], scratch[7], scratch[8], scratch[9]
-    work = scratch[17][0]
+    part = scratch[17][0]
     for k in range(n_p):
         bp[2 * k] = p_t0[k]
         bp[2 * k + 1] = p_t1[k]
@@ -166,13 +190,18 @@ def composite(n_p, tmin, tmax, scratch):
         mag = 0.0
         for m in range(n_act):
             i = act[m]
-            span = p_t1[i] - p_t0[i]
-            s0 = min(max((lo - p_t0[i]) / span, 0.0), 1.0)
-            s1 = min(max((hi - p_t0[i]) / span, 0.0), 1.0)
-            subdivide(p_c[i], s0, s1, work)
+            rest = p_c[i]
+            if lo > p_t0[i]:  # the ray starts inside this chord (tmin), or a clipped gap: drop what lies before
+                split(rest, (lo - p_t0[i]) / (p_t1[i] - p_t0[i]), part, rest)
+                p_t0[i] = lo
+            if hi < p_t1[i]:
+                split(rest, (hi - lo) / (p_t1[i] - lo), part, rest)
+                p_t0[i] = hi
+            else:
+                part[:] = rest
             for q in range(NCOEF):
-                c[q] += work[q]
-                mag += abs(work[q])
+                c[q] += part[q]
+                mag += abs(part[q])
         iv_t0[n_iv] = lo
         iv_t1[n_iv] = hi
         iv_mag[n_iv] = mag / NCOEF

@@ -6,6 +6,7 @@ from numba import njit, prange
 
 from ..config import NJIT, NJIT_PARALLEL
 from .metaball import falloff, unit_distance2
+from .bvh import STACK, bvh_candidates
 from .sweep import alloc_scratch, pieces_optical_depth, trace_blob
 
 #: chords a fresh scratch holds; rays that meet more grow their chunk's scratch once
@@ -13,7 +14,7 @@ INITIAL_CAPACITY = 64
 
 
 @njit(**NJIT_PARALLEL)
-def trace_rays(origins, dirs, tmax, centers, frames, weights, kernel, threshold, tol_t, mode, scale,
+def trace_rays(origins, dirs, tmax, centers, frames, weights, kernel, threshold, tol_t, mode, scale, bvh,
                cap_out, n_chunks, tau, n_roots, roots, n_seg, segs):
     """For each ray: tau (exact optical depth), the transitions (first cap_out) and the inside
     segments (adjacent pieces merged; first cap_out). Counts are the true counts, so a count above
@@ -21,12 +22,16 @@ def trace_rays(origins, dirs, tmax, centers, frames, weights, kernel, threshold,
     contiguous chunks, one scratch each."""
     n_rays = origins.shape[0]
     n_balls = centers.shape[0]
-    cand = np.arange(n_balls)
+    node_box, node_a, node_b, node_n, items = bvh
     for chunk in prange(n_chunks):
         scratch = alloc_scratch(min(INITIAL_CAPACITY, n_balls))
+        cand = np.empty(n_balls, np.int64)
+        stack = np.empty(2 * STACK, np.int64)
         for r in range(chunk * n_rays // n_chunks, (chunk + 1) * n_rays // n_chunks):
+            n_cand = bvh_candidates(origins[r], dirs[r], 0.0, tmax[r], 0, node_box, node_a, node_b, node_n,
+                                    items, stack, cand)
             scratch, n_out, n_tr = trace_blob(origins[r], dirs[r], 0.0, tmax[r], centers, frames, weights,
-                                              kernel, threshold, tol_t, cand, n_balls, False, scratch)
+                                              kernel, threshold, tol_t, cand, n_cand, False, scratch)
             tau[r] = pieces_optical_depth(n_out, mode, threshold, scale, scratch)
             n_roots[r] = n_tr
             tr = scratch[13]

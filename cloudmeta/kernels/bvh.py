@@ -1,0 +1,147 @@
+"""A bounding-volume hierarchy over the balls' supports (axis-aligned boxes), built and walked in numba.
+
+Layout, flat: node_box (K, 6) = [lo, hi]; a leaf has node_n > 0 and holds items[node_a : node_a + node_n];
+an inner node has node_n == 0 and children node_a (left) and node_b (right). ``items`` are ball indices
+(global, so that the media can share one list of balls). A leaf's items are all candidates: testing each
+ball's box would cost as much as the chord test that follows. The build splits at the middle of the longest axis of the centres' box (falling back to
+the median when everything lands on one side), which is O(N log N) and needs no sort.
+"""
+import numpy as np
+from numba import njit
+
+from ..config import NJIT
+
+LEAF_SIZE = 4
+STACK = 64
+
+
+@njit(**NJIT)
+def build_bvh(bounds, first_index):
+    """BVH over boxes bounds (N, 6); items are first_index + local index. Returns
+    (node_box, node_a, node_b, node_n, items)."""
+    n = bounds.shape[0]
+    items = np.arange(n) + first_index
+    local = np.arange(n)
+    cap = max(1, 2 * n)
+    node_box = np.empty((cap, 6))
+    node_a = np.zeros(cap, np.int64)
+    node_b = np.zeros(cap, np.int64)
+    node_n = np.zeros(cap, np.int64)
+    centre = 0.5 * (bounds[:, :3] + bounds[:, 3:])
+    # explicit stack of (node, start, end)
+    st_node = np.empty(STACK * 2, np.int64)
+    st_s = np.empty(STACK * 2, np.int64)
+    st_e = np.empty(STACK * 2, np.int64)
+    st_depth = np.empty(STACK * 2, np.int64)
+    n_nodes = 1
+    st_node[0] = 0
+    st_s[0] = 0
+    st_e[0] = n
+    st_depth[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        node = st_node[top]
+        s = st_s[top]
+        e = st_e[top]
+        depth = st_depth[top]
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        clo = np.full(3, np.inf)
+        chi = np.full(3, -np.inf)
+        for k in range(s, e):
+            i = local[k]
+            for c in range(3):
+                lo[c] = min(lo[c], bounds[i, c])
+                hi[c] = max(hi[c], bounds[i, 3 + c])
+                clo[c] = min(clo[c], centre[i, c])
+                chi[c] = max(chi[c], centre[i, c])
+        for c in range(3):
+            node_box[node, c] = lo[c]
+            node_box[node, 3 + c] = hi[c]
+        if e - s <= LEAF_SIZE or depth >= STACK - 2:  # the depth cap keeps the walk's stack bounded
+            node_a[node] = s
+            node_n[node] = e - s
+            continue
+        axis = 0
+        for c in range(1, 3):
+            if chi[c] - clo[c] > chi[axis] - clo[axis]:
+                axis = c
+        mid = 0.5 * (clo[axis] + chi[axis])
+        # partition local[s:e] by centre < mid
+        i = s
+        j = e - 1
+        while i <= j:
+            if centre[local[i], axis] < mid:
+                i += 1
+            else:
+                local[i], local[j] = local[j], local[i]
+                j -= 1
+        m = i
+        if m == s or m == e:
+            m = (s + e) // 2  # all centres coincide along the axis: split the list in half
+        left = n_nodes
+        right = n_nodes + 1
+        n_nodes += 2
+        node_a[node] = left
+        node_b[node] = right
+        node_n[node] = 0
+        st_node[top] = right
+        st_s[top] = m
+        st_e[top] = e
+        st_depth[top] = depth + 1
+        top += 1
+        st_node[top] = left
+        st_s[top] = s
+        st_e[top] = m
+        st_depth[top] = depth + 1
+        top += 1
+    for k in range(n):
+        items[k] = local[k] + first_index
+    return node_box[:n_nodes].copy(), node_a[:n_nodes].copy(), node_b[:n_nodes].copy(), node_n[:n_nodes].copy(), items
+
+
+@njit(**NJIT)
+def ray_box(o, inv_d, box, tmin, tmax):
+    """Slab test: does the ray meet the box within [tmin, tmax]?"""
+    t0 = tmin
+    t1 = tmax
+    for c in range(3):
+        ta = (box[c] - o[c]) * inv_d[c]
+        tb = (box[3 + c] - o[c]) * inv_d[c]
+        if ta > tb:
+            ta, tb = tb, ta
+        if ta > t0:
+            t0 = ta
+        if tb < t1:
+            t1 = tb
+        if t0 > t1:
+            return False
+    return True
+
+
+@njit(**NJIT)
+def bvh_candidates(o, d, tmin, tmax, root, node_box, node_a, node_b, node_n, items, stack, cand):
+    """Ball indices whose boxes the ray meets within [tmin, tmax], into cand; returns their number."""
+    inv_d = np.empty(3)
+    for c in range(3):
+        inv_d[c] = 1.0 / d[c] if d[c] != 0.0 else np.inf
+    n = 0
+    top = 0
+    if not ray_box(o, inv_d, node_box[root], tmin, tmax):
+        return 0
+    stack[0] = root
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        if node_n[node] > 0:
+            for k in range(node_a[node], node_a[node] + node_n[node]):
+                cand[n] = items[k]
+                n += 1
+            continue
+        for child in (node_a[node], node_b[node]):
+            if ray_box(o, inv_d, node_box[child], tmin, tmax):
+                stack[top] = child
+                top += 1
+    return n
