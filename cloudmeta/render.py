@@ -74,10 +74,29 @@ class PackedMedia:
     scale: np.ndarray
     albedo: np.ndarray
     phase: np.ndarray      # (M, 4): kind, g1, g2, w
+    bvh: tuple             # node_box, node_a, node_b, node_n, items of all media; root (M,) per medium
 
     def args(self):
+        """The ``med`` tuple of cloudmeta.kernels.radiance."""
         return (self.centers, self.frames, self.weights, self.start, self.kernel, self.threshold, self.mode,
-                self.scale, self.albedo, self.phase)
+                self.scale, self.albedo, self.phase, *self.bvh)
+
+
+def merge_bvhs(blobs, starts):
+    """One set of BVH arrays for several blobs: node and item indices shifted, one root per blob."""
+    parts, roots, n_nodes = [], [], 0
+    for blob, first in zip(blobs, starts):
+        box, a, b, n, items = blob.bvh
+        leaf = n > 0
+        parts.append((box, np.where(leaf, a + first, a + n_nodes), np.where(leaf, b, b + n_nodes), n,
+                      items + first))
+        roots.append(n_nodes)
+        n_nodes += len(box)
+    if not parts:
+        return (np.zeros((1, 6)), np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                np.zeros(0, np.int64), np.zeros(0, np.int64))
+    cat = [np.ascontiguousarray(np.concatenate([p[k] for p in parts])) for k in range(5)]
+    return (*cat, np.array(roots, np.int64))
 
 
 def pack_media(media) -> PackedMedia:
@@ -97,11 +116,12 @@ def pack_media(media) -> PackedMedia:
         threshold=np.array([b.threshold for b in blobs], np.float64),
         mode=np.array([DENSITY_MODES[m.density.mode] for m in media], np.int64),
         scale=np.array([m.density.scale for m in media], np.float64),
-        albedo=np.array([m.albedo for m in media], np.float64), phase=phase)
+        albedo=np.array([m.albedo for m in media], np.float64), phase=phase,
+        bvh=merge_bvhs(blobs, np.concatenate([[0], np.cumsum(counts)])[:-1]))
 
 
 def pack_lights(lights):
-    kind = np.array([DIRECTIONAL if isinstance(l, DirectionalLight) else POINT for l in lights], np.int64)
+    kind = np.array([DIRECTIONAL if isinstance(l, DirectionalLight) else POINT for l in lights], np.int64).reshape(-1)
     vec = np.array([l.direction if isinstance(l, DirectionalLight) else l.position for l in lights],
                    np.float64).reshape(-1, 3)
     rgb = np.array([l.irradiance if isinstance(l, DirectionalLight) else l.intensity for l in lights],
@@ -135,19 +155,21 @@ def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
     lo, hi = scene.bbox()
     q = resolve_quality(scene.render, float(np.linalg.norm(hi - lo)))
     media = pack_media(scene.media)
-    kind, vec, rgb = pack_lights(scene.lights)
-    gl_x, gl_w = gauss_legendre(q.nodes)
+    med = media.args()
+    lights = pack_lights(scene.lights)
+    quad = (*gauss_legendre(q.nodes), q.max_tau, q.max_length, q.cutoff, q.tol_t)
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     fwd, right, up = camera_basis(scene.camera, w, h)
-    ambient = np.zeros(3) if scene.ambient is None else np.asarray(scene.ambient, np.float64)
-    background = np.asarray(scene.background, np.float64)
+    # fresh writable copies: numba types read-only arrays apart, and a second type means a second compile
+    ambient = np.zeros(3) if scene.ambient is None else np.array(scene.ambient, np.float64)
+    background = np.array(scene.background, np.float64)
+    position = np.array(scene.camera.position, np.float64)
     image = np.zeros((h, w, 4), np.float64)
     bar = _progress(h, progress)
     for row0 in range(0, h, BAND_ROWS):
         row1 = min(h, row0 + BAND_ROWS)
-        render_rows(row0, row1, w, h, spp, seed, np.asarray(scene.camera.position, np.float64), fwd, right, up,
-                    n_chunks((row1 - row0) * w), *media.args(), kind, vec, rgb, gl_x, gl_w, q.max_tau,
-                    q.max_length, q.cutoff, q.tol_t, background, ambient, image)
+        render_rows(row0, row1, w, h, spp, seed, position, fwd, right, up,
+                    n_chunks((row1 - row0) * w), med, lights, quad, background, ambient, image)
         bar.update(row1 - row0)
     bar.close()
     return image.astype(np.float32)

@@ -5,11 +5,16 @@ Bernstein polynomial. Where pieces of several media overlap, the ray is cut into
 and their polynomials are added, exactly as the engine composites balls. On each interval:
 
 - the view optical depth tau(0, t) is exact at any t (the antiderivative of a Bernstein polynomial);
-- the in-scattering integral is a Gauss-Legendre rule on steps no thicker than ``max_tau`` and no longer
-  than ``max_length``, with an exact shadow ray from every node to every light.
+- the in-scattering integral is taken in optical depth u, where T sigma_s dt = e^-u (sigma_s/sigma_t) du:
+  a Gauss-Legendre rule on steps no thicker than ``max_tau`` and no longer than ``max_length``, with an
+  exact shadow ray from every node to every light.
 
-Media are packed as one list of balls with offsets ``med_start``; lights as kind (0 directional,
-1 point), vector (towards-light direction or position) and RGB (irradiance or intensity).
+Three tuples carry the scene (see cloudmeta.render.PackedMedia.args for the order):
+  med    = (centers, frames, weights, start, kernel, threshold, mode, scale, albedo, phase,
+            node_box, node_a, node_b, node_n, items, root)       -- every medium's balls and its BVH
+  lights = (kind, vec, rgb): kind 0 directional (vec towards the light, rgb irradiance),
+           kind 1 point (vec its position, rgb intensity)
+  quad   = (gl_x, gl_w, max_tau, max_length, cutoff, tol_t)
 """
 import math
 
@@ -19,6 +24,7 @@ from numba import njit, prange
 from ..config import NJIT, NJIT_PARALLEL
 from .bernstein import NCOEF, bernstein_cumulative, bernstein_mean, subdivide
 from .optics import phase
+from .bvh import STACK, bvh_candidates
 from .sweep import (DENSITY_EXCESS, DENSITY_UNIFORM, alloc_scratch, heap_argsort, heap_sort,
                     pieces_optical_depth, trace_blob)
 
@@ -36,17 +42,26 @@ def alloc_ray_pieces(capacity):
 
 
 @njit(**NJIT)
-def collect_media(o, d, tmax, centers, frames, weights, med_start, med_kernel, med_threshold, med_mode,
-                  med_scale, tol_t, scratch, rp):
+def medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack):
+    """Inside pieces of medium m on the ray (in scratch); returns (scratch, n_pieces)."""
+    centers, frames, weights, start, kernel, threshold = med[0], med[1], med[2], med[3], med[4], med[5]
+    n_cand = bvh_candidates(o, d, 0.0, tmax, med[15][m], med[10], med[11], med[12], med[13], med[14],
+                            stack, cand)
+    if n_cand == 0:
+        return scratch, 0
+    scratch, n_out, _ = trace_blob(o, d, 0.0, tmax, centers, frames, weights, kernel[m], threshold[m], tol_t,
+                                   cand, n_cand, False, scratch)
+    return scratch, n_out
+
+
+@njit(**NJIT)
+def collect_media(o, d, tmax, med, tol_t, scratch, rp, cand, stack):
     """Trace the ray through every medium; copy each inside piece, as sigma_t, into rp.
     Returns (scratch, rp, number of pieces)."""
+    threshold, mode, scale_m = med[5], med[6], med[7]
     n = 0
-    cand = np.arange(centers.shape[0])  # one small allocation per call: the BVH will replace it
-    for m in range(med_start.shape[0] - 1):
-        a = med_start[m]
-        b = med_start[m + 1]
-        scratch, n_out, _ = trace_blob(o, d, 0.0, tmax, centers, frames, weights, med_kernel[m],
-                                       med_threshold[m], tol_t, cand[a:b], b - a, False, scratch)
+    for m in range(med[3].shape[0] - 1):
+        scratch, n_out = medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack)
         if n + n_out > rp[0].shape[0]:
             bigger = alloc_ray_pieces(2 * (n + n_out))
             bigger[0][:n] = rp[0][:n]
@@ -55,15 +70,15 @@ def collect_media(o, d, tmax, centers, frames, weights, med_start, med_kernel, m
             bigger[3][:n] = rp[3][:n]
             rp = bigger
         o_t0, o_t1, o_c = scratch[10], scratch[11], scratch[12]
-        scale = med_scale[m]
+        scale = scale_m[m]
         for k in range(n_out):
             rp[0][n] = o_t0[k]
             rp[1][n] = o_t1[k]
             for q in range(NCOEF):
-                if med_mode[m] == DENSITY_UNIFORM:
+                if mode[m] == DENSITY_UNIFORM:
                     rp[2][n, q] = scale
-                elif med_mode[m] == DENSITY_EXCESS:
-                    rp[2][n, q] = scale * (o_c[k, q] - med_threshold[m])
+                elif mode[m] == DENSITY_EXCESS:
+                    rp[2][n, q] = scale * (o_c[k, q] - threshold[m])
                 else:
                     rp[2][n, q] = scale * o_c[k, q]
             rp[3][n] = m
@@ -72,17 +87,12 @@ def collect_media(o, d, tmax, centers, frames, weights, med_start, med_kernel, m
 
 
 @njit(**NJIT)
-def shadow_transmittance(x, l, tmax, centers, frames, weights, med_start, med_kernel, med_threshold,
-                         med_mode, med_scale, tol_t, tau_stop, scratch):
+def shadow_transmittance(x, l, tmax, med, tol_t, tau_stop, scratch, cand, stack):
     """T_l = exp(-tau) from x along l up to tmax through every medium; stops once tau > tau_stop."""
     tau = 0.0
-    cand = np.arange(centers.shape[0])
-    for m in range(med_start.shape[0] - 1):
-        a = med_start[m]
-        b = med_start[m + 1]
-        scratch, n_out, _ = trace_blob(x, l, 0.0, tmax, centers, frames, weights, med_kernel[m],
-                                       med_threshold[m], tol_t, cand[a:b], b - a, False, scratch)
-        tau += pieces_optical_depth(n_out, med_mode[m], med_threshold[m], med_scale[m], scratch)
+    for m in range(med[3].shape[0] - 1):
+        scratch, n_out = medium_pieces(x, l, tmax, med, m, tol_t, scratch, cand, stack)
+        tau += pieces_optical_depth(n_out, med[6][m], med[5][m], med[7][m], scratch)
         if tau > tau_stop:
             break
     return scratch, math.exp(-tau)
@@ -99,15 +109,65 @@ def _bernstein_at(c, s, work):
 
 
 @njit(**NJIT)
-def ray_radiance(o, d, centers, frames, weights, med_start, med_kernel, med_threshold, med_mode, med_scale,
-                 med_albedo, med_phase, light_kind, light_vec, light_rgb, gl_x, gl_w, max_tau, max_length,
-                 cutoff, tol_t, background, ambient, scratch, rp, light_buf, out):
+def _depth_to_s(S, w, u, s_lo, cum, work):
+    """s in [s_lo, 1] where the optical depth w * int_0^s S reaches u: Newton on the exact antiderivative,
+    kept inside a shrinking bracket (the depth is monotone, S >= 0)."""
+    lo = s_lo
+    hi = 1.0
+    s = s_lo
+    for _ in range(60):
+        f = w * bernstein_cumulative(S, s, cum) - u
+        if f < 0.0:
+            lo = s
+        else:
+            hi = s
+        slope = w * _bernstein_at(S, s, work)
+        step_ok = slope > 0.0
+        if step_ok:
+            sn = s - f / slope
+            step_ok = lo < sn < hi
+        sn = sn if step_ok else 0.5 * (lo + hi)
+        if abs(sn - s) <= 1e-14 or hi - lo <= 1e-14:
+            return sn
+        s = sn
+    return s
+
+
+@njit(**NJIT)
+def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l_dir, light_buf):
+    """Per light: light_buf[li, 0] = cos theta = l . d, light_buf[li, 1:4] = E_l T_l at pos."""
+    light_kind, light_vec, light_rgb = lights
+    for li in range(light_kind.shape[0]):
+        if light_kind[li] == DIRECTIONAL:
+            for c in range(3):
+                l_dir[c] = light_vec[li, c]
+            e_scale = 1.0
+            l_max = np.inf
+        else:
+            for c in range(3):
+                l_dir[c] = light_vec[li, c] - pos[c]
+            dist2 = l_dir[0] * l_dir[0] + l_dir[1] * l_dir[1] + l_dir[2] * l_dir[2]
+            l_max = math.sqrt(dist2)
+            for c in range(3):
+                l_dir[c] /= l_max
+            e_scale = 1.0 / dist2
+        light_buf[li, 0] = l_dir[0] * d[0] + l_dir[1] * d[1] + l_dir[2] * d[2]
+        scratch, t_l = shadow_transmittance(pos, l_dir, l_max, med, tol_t, tau_stop, scratch, cand, stack)
+        for c in range(3):
+            light_buf[li, 1 + c] = light_rgb[li, c] * e_scale * t_l
+    return scratch
+
+
+@njit(**NJIT)
+def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand, stack, light_buf, out):
     """out[:3] = radiance of the camera ray o + t d, out[3] = its transmittance T(0, inf).
 
     Returns (scratch, rp): the work arrays, grown if this ray needed more room.
     """
-    scratch, rp, n = collect_media(o, d, np.inf, centers, frames, weights, med_start, med_kernel,
-                                   med_threshold, med_mode, med_scale, tol_t, scratch, rp)
+    med_albedo, med_phase = med[8], med[9]
+    light_kind, light_vec, light_rgb = lights
+    gl_x, gl_w, max_tau, max_length, cutoff, tol_t = quad
+    scratch, rp, n = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
     out[0] = 0.0
     out[1] = 0.0
     out[2] = 0.0
@@ -119,8 +179,10 @@ def ray_radiance(o, d, centers, frames, weights, med_start, med_kernel, med_thre
         return scratch, rp
     p_t0, p_t1, p_c, p_m, bp, order, act, act_c = rp
     work = scratch[17][0]
-    cum = np.empty(NCOEF + 1)  # per ray; tiny
-    S = np.empty(NCOEF)
+    cum = light_buf[-1]          # the last rows of light_buf are this ray's small work vectors
+    S = light_buf[-2, :NCOEF]
+    pos = light_buf[-3, :3]
+    l_dir = light_buf[-3, 3:6]
     n_lights = light_kind.shape[0]
     has_ambient = ambient[0] > 0.0 or ambient[1] > 0.0 or ambient[2] > 0.0
     tau_stop = -math.log(cutoff) if cutoff > 0.0 else np.inf
@@ -164,42 +226,26 @@ def ray_radiance(o, d, centers, frames, weights, med_start, med_kernel, med_thre
             scatters = scatters or med_albedo[p_m[i]] > 0.0
         w = tb - ta
         tau_iv = w * bernstein_mean(S)
-        if shading and scatters:
+        if shading and scatters and tau_iv > 0.0:
+            # in optical depth u = tau(ta, t): T sigma_s dt = e^-u (sigma_s / sigma_t) du, so the nodes
+            # need not resolve the exponential; t(u) is found on the exact antiderivative
             n_steps = max(1, int(math.ceil(max(tau_iv / max_tau, w / max_length))))
+            h = tau_iv / n_steps
+            s_prev = 0.0
             for st in range(n_steps):
-                sa = st / n_steps
-                sb = (st + 1) / n_steps
                 for g in range(gl_x.shape[0]):
-                    s = sa + (sb - sa) * gl_x[g]
+                    u = (st + gl_x[g]) * h
+                    s = _depth_to_s(S, w, u, s_prev, cum, work)
+                    s_prev = s
+                    sigma_t = _bernstein_at(S, s, work)
+                    if sigma_t <= 0.0:
+                        continue
                     t = ta + s * w
-                    t_view = math.exp(-(tau_acc + w * bernstein_cumulative(S, s, cum)))
-                    px = o[0] + t * d[0]
-                    py = o[1] + t * d[1]
-                    pz = o[2] + t * d[2]
-                    pos = np.array((px, py, pz))  # small; hoisted by LLVM in practice
-                    # light arriving at the node, per light: cos theta and E T_l
-                    for li in range(n_lights):
-                        if light_kind[li] == DIRECTIONAL:
-                            lx, ly, lz = light_vec[li, 0], light_vec[li, 1], light_vec[li, 2]
-                            e_scale = 1.0
-                            l_max = np.inf
-                        else:
-                            lx = light_vec[li, 0] - px
-                            ly = light_vec[li, 1] - py
-                            lz = light_vec[li, 2] - pz
-                            dist2 = lx * lx + ly * ly + lz * lz
-                            l_max = math.sqrt(dist2)
-                            lx /= l_max
-                            ly /= l_max
-                            lz /= l_max
-                            e_scale = 1.0 / dist2
-                        light_buf[li, 0] = lx * d[0] + ly * d[1] + lz * d[2]
-                        scratch, t_l = shadow_transmittance(pos, np.array((lx, ly, lz)), l_max, centers, frames,
-                                                            weights, med_start, med_kernel, med_threshold,
-                                                            med_mode, med_scale, tol_t, tau_stop, scratch)
-                        for c in range(3):
-                            light_buf[li, 1 + c] = light_rgb[li, c] * e_scale * t_l
-                    weight = gl_w[g] * (sb - sa) * w * t_view
+                    for c in range(3):
+                        pos[c] = o[c] + t * d[c]
+                    scratch = _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack,
+                                             l_dir, light_buf)
+                    weight = gl_w[g] * h * math.exp(-(tau_acc + u)) / sigma_t
                     for q in range(n_act):
                         m = p_m[act[q]]
                         sigma_s = med_albedo[m] * _bernstein_at(act_c[q], s, work)
@@ -237,11 +283,16 @@ def jitter(seed, pixel, sample, dim):
     return float(_mix64(key) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
+@njit(**NJIT)
+def alloc_work(n_balls, n_lights):
+    """Per-chunk work arrays of the image loop: candidate list, BVH stack, light buffer."""
+    return (np.empty(max(n_balls, 1), np.int64), np.empty(2 * STACK, np.int64),
+            np.empty((n_lights + 3, NCOEF + 1)))
+
+
 @njit(**NJIT_PARALLEL)
 def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_right, cam_up, n_chunks,
-                centers, frames, weights, med_start, med_kernel, med_threshold, med_mode, med_scale,
-                med_albedo, med_phase, light_kind, light_vec, light_rgb, gl_x, gl_w, max_tau, max_length,
-                cutoff, tol_t, background, ambient, image):
+                med, lights, quad, background, ambient, image):
     """Rows [row0, row1) of the image (H x W x 4, row 0 at the top), written into image[row0:row1].
 
     cam_right and cam_up are scaled to the half-extent of the image plane at distance 1. With spp > 1
@@ -252,7 +303,7 @@ def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_righ
     for chunk in prange(n_chunks):
         scratch = alloc_scratch(64)
         rp = alloc_ray_pieces(64)
-        light_buf = np.empty((max(light_kind.shape[0], 1), 4))
+        cand, stack, light_buf = alloc_work(med[0].shape[0], lights[0].shape[0])
         px_out = np.empty(4)
         d = np.empty(3)
         for p in range(chunk * n_pix // n_chunks, (chunk + 1) * n_pix // n_chunks):
@@ -277,10 +328,8 @@ def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_righ
                 norm = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
                 for c in range(3):
                     d[c] /= norm
-                scratch, rp = ray_radiance(cam_pos, d, centers, frames, weights, med_start, med_kernel,
-                                           med_threshold, med_mode, med_scale, med_albedo, med_phase,
-                                           light_kind, light_vec, light_rgb, gl_x, gl_w, max_tau, max_length,
-                                           cutoff, tol_t, background, ambient, scratch, rp, light_buf, px_out)
+                scratch, rp = ray_radiance(cam_pos, d, med, lights, quad, background, ambient, scratch, rp,
+                                           cand, stack, light_buf, px_out)
                 acc0 += px_out[0]
                 acc1 += px_out[1]
                 acc2 += px_out[2]
