@@ -179,3 +179,15 @@ def optical_depth(blob, o, d, t_max=np.inf, density="field", scale=1.0):
             anti = P.polyint(rho)
             tau += P.polyval(x1, anti) - P.polyval(x0, anti)
     return scale * tau
+
+
+def hull_crossing(c):
+    """Where the convex hull of (i/n, c_i) meets 0: min and max over all segments between points of
+    opposite sign, and points on the axis (None when nowhere)."""
+    n = len(c) - 1
+    xs = [i / n for i in range(n + 1) if c[i] == 0]
+    for i in range(n + 1):
+        for j in range(i + 1, n + 1):
+            if c[i] * c[j] < 0:
+                xs.append((i + (j - i) * c[i] / (c[i] - c[j])) / n)
+    return (min(xs), max(xs)) if xs else None

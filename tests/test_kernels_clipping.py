@@ -82,3 +82,17 @@ def test_random_polynomials_match_numpy_roots(rng):
         ref = [x for x in naive._real_roots_in(poly, 1.0)]
         ref = [x for x in ref if (P.polyval(max(x - 1e-7, 0), poly) >= 0) != (P.polyval(min(x + 1e-7, 1), poly) >= 0)]
         np.testing.assert_allclose(got, ref, atol=1e-9)
+
+
+def test_hull_crossing_matches_all_pairs(rng):
+    hull = np.empty(7)
+    cases = [rng.normal(size=7) for _ in range(3000)]
+    cases += [np.round(rng.normal(size=7)) for _ in range(500)]  # zeros and collinear points
+    cases += [np.array([0, 0, 0.59, 2.31, 0.59, 0, 0]) - t for t in (-0.2, 0.5, 1.2)]
+    for c in cases:
+        got = kc.hull_crossing(c, hull)
+        ref = naive.hull_crossing(c)
+        if ref is None:
+            assert got[0] > got[1], c
+        else:
+            np.testing.assert_allclose(got, ref, atol=1e-14, err_msg=str(c))

@@ -7,8 +7,8 @@ out sorted without a sort.
 import numpy as np
 from numba import njit
 
-from ..config import NJIT
-from .bernstein import subdivide
+from ..config import NJIT, NJIT_INLINE
+from .bernstein import _casteljau_rows, split, subdivide
 
 #: an iteration that keeps more than this fraction of its interval is stalling (near a multiple root):
 #: split the interval in half instead
@@ -19,33 +19,72 @@ STACK_DEPTH = 64
 MAX_STEPS = 400
 
 
-@njit(**NJIT)
-def hull_crossing(c):
-    """[smin, smax]: where the convex hull of the control points (i/n, c_i) meets g = 0 (smin > smax: nowhere).
+@njit(**NJIT_INLINE)
+def _chain(c, upper, hull):
+    """Lower (or upper) convex hull of the points (i, c_i), which come sorted in i: Andrew's monotone
+    chain. Writes the vertices' indices into hull (as floats) and returns their number."""
+    m = 0
+    for i in range(c.shape[0]):
+        while m >= 2:
+            o = int(hull[m - 2])
+            a = int(hull[m - 1])
+            cross = (a - o) * (c[i] - c[o]) - (c[a] - c[o]) * (i - o)
+            if (cross < 0.0) if upper else (cross > 0.0):
+                break  # a proper turn: the middle vertex stays (collinear ones go)
+            m -= 1
+        hull[m] = i
+        m += 1
+    return m
 
-    The hull's intersection with the axis is spanned by the crossings of the segments between points of
-    opposite sign, plus the points on the axis: O(n^2) pairs, no hull construction needed.
-    """
+
+@njit(**NJIT_INLINE)
+def _first_crossing(c, hull, m, from_left):
+    """Walk the chain from one end to its first vertex on the other side of 0 (or on it): the x (in index
+    units) where that edge meets 0, or -1 if the chain stays on its side."""
+    for k in range(m - 1):
+        if from_left:
+            a = int(hull[k])
+            b = int(hull[k + 1])
+        else:
+            a = int(hull[m - 1 - k])
+            b = int(hull[m - 2 - k])
+        ca = c[a]
+        cb = c[b]
+        if cb == 0.0 or (ca > 0.0) != (cb > 0.0):
+            return a + (b - a) * (ca / (ca - cb))
+    return -1.0
+
+
+@njit(**NJIT_INLINE)
+def hull_crossing(c, hull):
+    """[smin, smax]: where the convex hull of the control points (i/n, c_i) meets g = 0 (smin > smax:
+    nowhere). The left end lies on the lower chain when c_0 > 0 and on the upper chain when c_0 < 0;
+    likewise the right end with c_n. ``hull`` is scratch of length n + 1."""
     n = c.shape[0] - 1
-    smin = 2.0
-    smax = -1.0
-    for i in range(n + 1):
-        ci = c[i]
-        if ci == 0.0:
-            x = i / n
-            smin = min(smin, x)
-            smax = max(smax, x)
-            continue
-        for j in range(i + 1, n + 1):
-            cj = c[j]
-            if (ci < 0.0 < cj) or (cj < 0.0 < ci):
-                x = (i + (j - i) * ci / (ci - cj)) / n
-                smin = min(smin, x)
-                smax = max(smax, x)
-    return max(smin, 0.0), min(smax, 1.0)
+    c0 = c[0]
+    cn = c[n]
+    smin = 0.0
+    smax = 1.0
+    if c0 != 0.0:
+        m = _chain(c, c0 < 0.0, hull)
+        x = _first_crossing(c, hull, m, True)
+        if x < 0.0:
+            return 2.0, -1.0
+        smin = x / n
+        if cn != 0.0 and (cn < 0.0) == (c0 < 0.0):
+            x = _first_crossing(c, hull, m, False)
+            smax = x / n
+            return smin, smax
+    if cn != 0.0:
+        m = _chain(c, cn < 0.0, hull)
+        x = _first_crossing(c, hull, m, False)
+        if x < 0.0:
+            return 2.0, -1.0
+        smax = x / n
+    return smin, smax
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def _no_crossing(c):
     """True when the convex hull says the class (g >= 0) is the same on the whole interval."""
     lo = c[0]
@@ -56,7 +95,7 @@ def _no_crossing(c):
     return lo >= 0.0 or hi < 0.0
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def _max_abs(c):
     m = 0.0
     for i in range(c.shape[0]):
@@ -91,7 +130,7 @@ def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, work, roots, rising):
             steps += 1
             if _no_crossing(c):
                 break
-            smin, smax = hull_crossing(c)
+            smin, smax = hull_crossing(c, work[1])
             if smax < smin:
                 break
             w = hi - lo
@@ -100,7 +139,7 @@ def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, work, roots, rising):
                 # ends tell whether the class changes across it (odd multiplicity) or not (a touch)
                 up = c[nc - 1] >= 0.0
                 if (c[0] >= 0.0) != up:
-                    r = lo + w * _polish(c, smin, smax, work[0])
+                    r = lo + w * _polish(c, smin, smax)
                     if n_roots > 0 and rising[n_roots - 1] != up and _is_noise(g, roots[n_roots - 1], r, eps_g, work[0]):
                         n_roots -= 1  # two crossings within the noise of g: one touch, the pair cancels
                     elif n_roots < roots.shape[0]:
@@ -111,20 +150,16 @@ def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, work, roots, rising):
             if smax - smin > STALL and top < STACK_DEPTH - 2:
                 # stalled near a multiple root: split, push the upper half, go on with the lower half
                 mid = 0.5 * (lo + hi)
-                subdivide(c, 0.5, 1.0, work[0])
-                subdivide(c, 0.0, 0.5, work[1])
+                split(c, 0.5, st_c[top + 1], st_c[top])
                 st_lo[top] = mid
                 st_hi[top] = hi
-                st_c[top, :] = work[0]
                 top += 1
                 c = st_c[top]
-                c[:] = work[1]
                 hi = mid
             else:
-                subdivide(c, smin, smax, work[0])
+                subdivide(c, smin, smax, c)  # safe in place: subdivide reads all of c first
                 w = hi - lo
                 lo, hi = lo + smin * w, lo + smax * w
-                c[:] = work[0]
     return n_roots
 
 
@@ -137,24 +172,20 @@ def _is_noise(g, r0, r1, eps_g, work):
     return _max_abs(work) <= eps_g
 
 
-@njit(**NJIT)
-def _value_slope(c, x, work):
-    """g(x) and g'(x) of a Bernstein curve: de Casteljau down to two points p0, p1."""
-    n = c.shape[0] - 1
-    for i in range(n + 1):
-        work[i] = c[i]
-    for r in range(1, n):
-        for i in range(n + 1 - r):
-            work[i] = (1.0 - x) * work[i] + x * work[i + 1]
-    return (1.0 - x) * work[0] + x * work[1], n * (work[1] - work[0])
+@njit(**NJIT_INLINE)
+def _value_slope(c, x):
+    """g(x) and g'(x) of a degree-6 curve from one de Casteljau triangle: the apex is the value, the
+    second-to-last row's two points give the slope 6 (v1 - v0)."""
+    left, right = _casteljau_rows(c[0], c[1], c[2], c[3], c[4], c[5], c[6], x)
+    return left[6], 6.0 * (right[1] - left[5])
 
 
-@njit(**NJIT)
-def _polish(c, smin, smax, work):
+@njit(**NJIT_INLINE)
+def _polish(c, smin, smax):
     """Two Newton steps from the middle of [smin, smax], kept inside it (the root is known to be there)."""
     x = 0.5 * (smin + smax)
     for _ in range(2):
-        v, dv = _value_slope(c, x, work)
+        v, dv = _value_slope(c, x)
         if dv == 0.0:
             break
         xn = x - v / dv
