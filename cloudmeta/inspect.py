@@ -1,0 +1,504 @@
+"""Look at a scene in 3D: its field F and density sigma_t on a grid, with pyvista (``cloudmeta inspect``).
+
+``sample_grid`` samples F (and sigma_t, MODEL.md §4) on a regular grid and returns a ``pyvista.ImageData``
+that ParaView also reads (``--save grid.vti``). The grid sampler culls: each sample visits only the balls
+whose support boxes share its cell (``kernels/grid.py``), and its values equal ``cloudmeta.field`` at the
+same points.
+
+``inspect_command`` draws three orthogonal slices of sigma_t (movable with widgets in a window), the
+isosurface F = T of every blob, the ball centres, the camera frustum and the lights; ``--slice z=2.0``
+draws one plane instead, coloured by sigma_t with the contour F = T on it.
+
+Off screen (``--screenshot``) no display and no X server (nor Xvfb) is needed. VTK's Linux wheels (9.4
+and later) choose an OpenGL window at run time: X when ``DISPLAY`` is set, else EGL, else OSMesa. EGL
+needs the system's ``libEGL.so.1`` and Mesa's EGL driver with its software rasteriser (Debian/Ubuntu:
+``libegl1``, ``libegl-mesa0``, ``libgl1-mesa-dri``; installed on this project's Debian 12 machines); OSMesa
+needs ``libOSMesa.so.8`` (``libosmesa6``). With no display and a libEGL on the system, this module asks
+VTK for EGL at once (``VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow``, unless the variable is already
+set), so that VTK does not try X first and print "bad X server connection".
+"""
+from __future__ import annotations
+
+import ctypes.util
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .blob import Blob
+from .errors import InputError
+from .kernels.grid import bin_balls, sample_field
+from .scene import DirectionalLight, PointLight, Scene, load_scene
+
+#: default bounds: the bounding box grown by this fraction of its longest side on every side
+PAD = 0.05
+#: largest accepted ``resolution`` (a 1024^3 grid is 8 GiB per array already)
+MAX_RESOLUTION = 1024
+#: the cull grid has at most this many cells in all, and at most CULL_AXIS_CELLS along one axis
+CULL_MAX_CELLS = 1 << 21
+CULL_AXIS_CELLS = 256
+#: a ``--slice`` plane is 2D, so it is sampled this many times finer than the 3D grid
+SLICE_REFINE = 4
+SIGMA_TITLE = "sigma_t [1/length]"
+FIELD_TITLE = "F"
+CMAP = "viridis"
+WINDOW_SIZE = (1200, 900)
+#: the 3D view's direction, in the scene camera's frame (right + BEYOND forward + ABOVE up), and the part
+#: of the picture (width, height) that what is drawn fills, clear of the legend and the scalar bar
+VIEW_BEYOND, VIEW_ABOVE, VIEW_FILL = 0.5, 0.6, (0.74, 0.84)
+#: opacity of the 3D slices where sigma_t = 0 (1 where it is above 1/64 of its maximum)
+SLICE_EMPTY_OPACITY = 0.25
+#: colours of the media's isosurfaces F = T, in scene order (a surface is drawn in its own colour)
+ISO_COLOURS = ((0.55, 0.8, 1.0), (1.0, 0.6, 0.85), (0.7, 1.0, 0.6), (1.0, 0.95, 0.55))
+SCREENSHOT_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+# ------------------------------------------------------------------------------------------- sampling
+
+def _cull_cells(blob):
+    """(cell_origin, cell_size, cell_dims, pad) of the cull grid over ``blob``'s bounding box.
+
+    Cells are about the size of a typical ball (the median support box), so a cell lists few balls; the
+    total count is capped, so that a few balls far apart do not ask for a huge, empty cell grid.
+    """
+    lo, hi = blob.bbox
+    extent = hi - lo
+    sizes = (blob.bounds[:, 3:] - blob.bounds[:, :3]).max(axis=1)
+    cell = max(float(np.median(sizes)), float(extent.max()) / CULL_AXIS_CELLS,
+               float(np.prod(extent) / CULL_MAX_CELLS) ** (1.0 / 3.0))
+    dims = np.clip(np.ceil(extent / cell), 1, CULL_AXIS_CELLS).astype(np.int64)
+    while np.prod(dims) > CULL_MAX_CELLS:  # rounding up each side can overshoot the cap a little
+        cell *= 1.05
+        dims = np.clip(np.ceil(extent / cell), 1, CULL_AXIS_CELLS).astype(np.int64)
+    # absorbs rounding in the support boxes: a ball is binned into every cell its support could touch
+    pad = 1e-9 * (float(np.abs(blob.bounds).max()) + blob.diagonal)
+    return np.ascontiguousarray(lo, dtype=np.float64), cell, dims, pad
+
+
+def _field_on_grid(blob, origin, spacing, dims):
+    """Flat F (x fastest) on the grid origin + (i, j, k) * spacing, (i, j, k) < dims."""
+    cell_origin, cell_size, cell_dims, pad = _cull_cells(blob)
+    cell_start, cell_items = bin_balls(blob.bounds, pad, cell_origin, cell_size, cell_dims)
+    out = np.empty(int(np.prod(dims)))
+    sample_field(origin, spacing, dims, blob.centers, blob.frames, blob.weights, blob.kernel_id,
+                 blob.blobbiness, cell_origin, cell_size, cell_dims, cell_start, cell_items, out)
+    return out
+
+
+def sigma_t(medium, field):
+    """sigma_t = scale * rho of a scene medium (MODEL.md §4) from its field values: 0 where F < T."""
+    t = medium.blob.threshold
+    rho = {"field": field, "excess": field - t, "uniform": 1.0}[medium.density.mode]
+    return np.where(field >= t, medium.density.scale * rho, 0.0)
+
+
+def field_names(scene_or_blob):
+    """[(array name, blob, medium or None)] of what ``sample_grid`` samples, in its order.
+
+    A Blob gives ``field``. A scene's one medium gives ``field``; several give ``field:NAME``; each surface
+    gives ``field:NAME`` (``field:surface:NAME`` if a medium already has that name).
+    """
+    if isinstance(scene_or_blob, Blob):
+        return [("field", scene_or_blob, None)]
+    media = scene_or_blob.media
+    out = [("field" if len(media) == 1 else f"field:{m.name}", m.blob, m) for m in media]
+    taken = {name for name, _, _ in out}
+    for s in scene_or_blob.surfaces:
+        name = f"field:{s.name}"
+        out.append((f"field:surface:{s.name}" if name in taken else name, s.blob, None))
+    return out
+
+
+def _check_resolution(resolution):
+    if not (isinstance(resolution, (int, np.integer)) and not isinstance(resolution, (bool, np.bool_))
+            and 2 <= resolution <= MAX_RESOLUTION):
+        raise InputError(f"resolution: expected an integer in [2, {MAX_RESOLUTION}] (samples along the longest "
+                         f"side), got {resolution!r}")
+    return int(resolution)
+
+
+def _check_bounds(bounds):
+    """(lo, hi) from ``(lo, hi)`` (shape (2, 3)) or pyvista's (xmin, xmax, ymin, ymax, zmin, zmax)."""
+    try:
+        b = np.array(bounds, dtype=np.float64)
+    except (TypeError, ValueError):
+        b = None
+    if b is None or b.shape not in ((2, 3), (6,)) or not np.all(np.isfinite(b)):
+        raise InputError(f"bounds: expected (lo, hi) with lo, hi 3 finite numbers each, or 6 finite numbers "
+                         f"(xmin, xmax, ymin, ymax, zmin, zmax), got {bounds!r}")
+    lo, hi = (b[0], b[1]) if b.shape == (2, 3) else (b[0::2], b[1::2])
+    if not np.all(hi > lo):
+        raise InputError(f"bounds: expected hi > lo on every axis, got lo = {lo.tolist()}, hi = {hi.tolist()}")
+    return lo, hi
+
+
+def _default_bounds(scene_or_blob):
+    lo, hi = scene_or_blob.bbox if isinstance(scene_or_blob, Blob) else scene_or_blob.bbox()
+    pad = PAD * float((hi - lo).max())
+    return lo - pad, hi + pad
+
+
+def _geometry(lo, hi, resolution, min_dim):
+    """origin, spacing (3,) and dims (3,) int64 of a grid with equal spacing on every axis, ``resolution``
+    samples along the longest side, covering [lo, hi] and centred on it; an axis with lo == hi gets
+    ``min_dim`` samples (1 for a plane)."""
+    extent = hi - lo
+    h = float(extent.max()) / (resolution - 1)
+    # the 1e-9 keeps rounding from adding a sample to the longest side, where extent / h = resolution - 1
+    dims = np.maximum(np.ceil(extent / h - 1e-9).astype(np.int64) + 1, min_dim)
+    dims[int(np.argmax(extent))] = resolution
+    origin = 0.5 * (lo + hi) - 0.5 * (dims - 1) * h
+    return origin, np.full(3, h), dims
+
+
+def _sample(scene_or_blob, origin, spacing, dims):
+    import pyvista as pv
+
+    grid = pv.ImageData(dimensions=tuple(int(d) for d in dims), spacing=tuple(spacing), origin=tuple(origin))
+    sigmas = []
+    for name, blob, medium in field_names(scene_or_blob):
+        values = _field_on_grid(blob, origin, spacing, dims)
+        grid.point_data[name] = values
+        grid.field_data[f"threshold:{name}"] = [blob.threshold]
+        if medium is not None:
+            sigmas.append((medium.name, sigma_t(medium, values)))
+    if len(sigmas) == 1:
+        grid.point_data["sigma_t"] = sigmas[0][1]
+    elif sigmas:
+        for name, values in sigmas:
+            grid.point_data[f"sigma_t:{name}"] = values
+        grid.point_data["sigma_t"] = np.sum([v for _, v in sigmas], axis=0)
+    if sigmas:
+        grid.set_active_scalars("sigma_t")
+    return grid
+
+
+def sample_grid(scene_or_blob, resolution=96, bounds=None):
+    """The field (and, for a scene, sigma_t) on a regular grid, as a ``pyvista.ImageData``.
+
+    Parameters
+    ----------
+    scene_or_blob : a ``Blob`` or a ``Scene`` (from ``load_scene``).
+    resolution : samples along the longest side of ``bounds`` (>= 2); the spacing is the same on every
+        axis, and the other sides get as many samples as cover them (the grid is centred on the bounds).
+    bounds : ``(lo, hi)`` or pyvista's ``(xmin, xmax, ymin, ymax, zmin, zmax)``, in scene units; default
+        the bounding box of every ball's support, grown by 5 % of its longest side.
+
+    Point arrays (x fastest, pyvista's order): for a Blob, ``field``. For a scene: each medium's ``field``
+    and ``sigma_t`` (scale * rho where F >= T, else 0; MODEL.md §4), named exactly so when there is one
+    medium, ``field:NAME`` and ``sigma_t:NAME`` with several, plus their sum ``sigma_t``; each surface's
+    ``field:NAME``. ``field_data["threshold:ARRAY"]`` holds the threshold T of each field array, so that a
+    saved grid can draw F = T on its own (in ParaView too).
+    """
+    if not isinstance(scene_or_blob, (Blob, Scene)):
+        raise InputError(f"scene_or_blob: expected a cloudmeta.Blob or a Scene from load_scene, "
+                         f"got {type(scene_or_blob).__name__}")
+    resolution = _check_resolution(resolution)
+    lo, hi = _default_bounds(scene_or_blob) if bounds is None else _check_bounds(bounds)
+    return _sample(scene_or_blob, *_geometry(lo, hi, resolution, 2))
+
+
+# ----------------------------------------------------------------------------------------- off screen
+
+def _has_display():
+    if not sys.platform.startswith("linux"):
+        return True  # macOS and Windows always have a window system
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _prepare_off_screen():
+    """Render without a window; with no X display, go straight to EGL when the system has libEGL."""
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    if not _has_display() and ctypes.util.find_library("EGL"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+# -------------------------------------------------------------------------------------------- drawing
+
+def _display_colour(rgb, fallback=(1.0, 0.85, 0.4)):
+    """A linear RGB (light or surface colour) scaled into [0, 1] for a glyph: hue kept, brightest = 1."""
+    rgb = np.asarray(rgb, dtype=np.float64)
+    top = float(rgb.max()) if rgb.size else 0.0
+    return tuple(np.clip(rgb / top, 0.0, 1.0)) if top > 0 else fallback
+
+
+def _camera_frustum(camera, width, height, distance):
+    """PolyData lines: from the eye to the 4 corners of the image plane at ``distance``, the plane's
+    rectangle, and a small triangle on its top edge that shows which way is up."""
+    import pyvista as pv
+
+    forward = camera.look_at - camera.position
+    forward = forward / np.linalg.norm(forward)
+    right = np.cross(forward, camera.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    half_h = distance * np.tan(np.radians(camera.fov) / 2.0)
+    half_w = half_h * width / height
+    centre = camera.position + distance * forward
+    corners = [centre + sx * half_w * right + sy * half_h * up for sx, sy in ((-1, 1), (1, 1), (1, -1), (-1, -1))]
+    top = [centre + (-0.3 * half_w) * right + half_h * up, centre + 0.3 * half_w * right + half_h * up,
+           centre + 1.3 * half_h * up]
+    points = np.array([camera.position] + corners + top)
+    lines = [2, 0, 1, 2, 0, 2, 2, 0, 3, 2, 0, 4, 5, 1, 2, 3, 4, 1, 4, 5, 6, 7, 5]
+    return pv.PolyData(points, lines=np.array(lines))
+
+
+def _contour(mesh, name, threshold):
+    """The contour F = T of array ``name`` (surfaces in 3D, lines on a plane), or None where F never
+    reaches T."""
+    data = mesh.point_data[name]
+    if not (data.min() < threshold <= data.max()):
+        return None
+    iso = mesh.contour([threshold], scalars=name)
+    return iso if iso.n_points else None
+
+
+def _density_array(grid):
+    """(array name, scalar bar title): sigma_t, or with no medium the first field."""
+    if "sigma_t" in grid.point_data:
+        return "sigma_t", SIGMA_TITLE
+    return grid.point_data.keys()[0], FIELD_TITLE
+
+
+def _scalar_range(values):
+    top = float(np.max(values)) if values.size else 0.0
+    low = min(0.0, float(np.min(values))) if values.size else 0.0
+    return [low, top if top > low else low + 1.0]
+
+
+def _bar(title):
+    return dict(title=title, color="white", title_font_size=20, label_font_size=16, fmt="%.3g",
+                vertical=True, position_x=0.88, position_y=0.25, height=0.5, width=0.06)
+
+
+def _things(scene):
+    """[(array name, blob, label, colour, opacity)] of the isosurfaces to draw."""
+    colours = {id(s.blob): s.color for s in scene.surfaces}
+    out = []
+    for name, blob, medium in field_names(scene):
+        if medium is not None:
+            colour = ISO_COLOURS[len(out) % len(ISO_COLOURS)]
+            out.append((name, blob, f"F = T ({medium.name})", colour, 0.45))
+        else:
+            surface = next(s for s in scene.surfaces if s.blob is blob)
+            out.append((name, blob, f"F = T ({surface.name}, surface)", _display_colour(colours[id(blob)]), 0.7))
+    return out
+
+
+def _corners(mesh):
+    """(8, 3) corners of a mesh's bounding box."""
+    b = mesh.bounds
+    return np.array([[x, y, z] for x in b[0:2] for y in b[2:4] for z in b[4:6]])
+
+
+def _fit_view(plotter, points, towards_viewer, up, fill=VIEW_FILL):
+    """Point the plotter's camera along -``towards_viewer`` and move it as close as it can be with every
+    one of ``points`` inside the central ``fill`` (width, height) of the picture; tighter than
+    ``reset_camera``, which fits a bounding sphere, and clear of the legend and the scalar bar."""
+    d = towards_viewer / np.linalg.norm(towards_viewer)
+    u = up - np.dot(up, d) * d
+    u /= np.linalg.norm(u)
+    r = np.cross(-d, u)
+    p = np.asarray(points) - points.mean(axis=0)
+    x, y, z = p @ r, p @ u, p @ d
+    cx, cy = 0.5 * (x.min() + x.max()), 0.5 * (y.min() + y.max())
+    focal = points.mean(axis=0) + cx * r + cy * u
+    width, height = plotter.window_size
+    tan_y = np.tan(np.radians(plotter.camera.view_angle) / 2.0)
+    tan_x = tan_y * width / height
+    dist = float(np.max(z + np.maximum(np.abs(x - cx) / (tan_x * fill[0]), np.abs(y - cy) / (tan_y * fill[1]))))
+    plotter.camera.position = tuple(focal + dist * d)
+    plotter.camera.focal_point = tuple(focal)
+    plotter.camera.up = tuple(u)
+    plotter.reset_camera_clipping_range()
+
+
+def draw_volume(plotter, scene, grid, widgets):
+    """Slices of sigma_t (with slice widgets when ``widgets``), each blob's F = T, the ball centres, the
+    camera frustum and the lights, on ``plotter``."""
+    import pyvista as pv
+
+    scalars, title = _density_array(grid)
+    clim = _scalar_range(grid.point_data[scalars])
+    # where sigma_t = 0 the slices are almost clear, so that they do not hide the isosurfaces behind them
+    opacity = np.r_[SLICE_EMPTY_OPACITY, np.full(63, 1.0)]
+    style = dict(scalars=scalars, cmap=CMAP, clim=clim, opacity=opacity, scalar_bar_args=_bar(title))
+    if widgets:
+        plotter.add_mesh_slice_orthogonal(grid, **style)
+    else:
+        for normal in "xyz":  # one mesh each: a MultiBlock takes no opacity transfer function
+            plotter.add_mesh(grid.slice(normal=normal, origin=grid.center), **style)
+    plotter.add_mesh(grid.outline(), color="gray", line_width=1)
+    fit = [_corners(grid)]
+
+    centre_labels = set()
+    for name, blob, label, colour, opacity in _things(scene):
+        iso = _contour(grid, name, blob.threshold)
+        if iso is not None:
+            plotter.add_mesh(iso, color=colour, opacity=opacity, smooth_shading=True, label=label,
+                             show_scalar_bar=False)
+        centres = pv.PolyData(np.array(blob.centers))
+        positive = blob.weights >= 0
+        for mask, colour_, what in ((positive, "white", "ball centres"), (~positive, "red", "carving centres")):
+            if mask.any():
+                plotter.add_mesh(centres.extract_points(mask, adjacent_cells=False), color=colour_, point_size=7,
+                                 render_points_as_spheres=True, show_scalar_bar=False,
+                                 label=None if what in centre_labels else what)
+                centre_labels.add(what)
+
+    lo, hi = np.array(grid.bounds[0::2]), np.array(grid.bounds[1::2])
+    centre, diagonal = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
+    cam = scene.camera
+    forward = (cam.look_at - cam.position) / np.linalg.norm(cam.look_at - cam.position)
+    distance = float(np.dot(centre - cam.position, forward))
+    if distance <= 0.0:  # the scene is behind the camera: show the image plane at the look-at point
+        distance = float(np.linalg.norm(cam.look_at - cam.position))
+    frustum = _camera_frustum(cam, scene.image.width, scene.image.height, distance)
+    plotter.add_mesh(frustum, color="orange", line_width=2, label="camera")
+    fit.append(frustum.points)
+
+    for k, light in enumerate(scene.lights):
+        if isinstance(light, DirectionalLight):
+            # an arrow from outside the scene, pointing the way the light travels (against ``direction``)
+            length = 0.25 * diagonal
+            start = centre + light.direction * (0.6 * diagonal + length)
+            glyph = pv.Arrow(start=start, direction=-light.direction, scale=length, shaft_radius=0.03,
+                             tip_radius=0.08, tip_length=0.3)
+            colour = _display_colour(light.irradiance)
+        elif isinstance(light, PointLight):
+            glyph = pv.Sphere(radius=0.03 * diagonal, center=light.position)
+            colour = _display_colour(light.intensity)
+        else:  # a light kind this view does not know yet: nothing to draw
+            continue
+        plotter.add_mesh(glyph, color=colour, label="lights" if k == 0 else None, show_scalar_bar=False)
+        fit.append(_corners(glyph))
+
+    plotter.add_legend(bcolor=(0.1, 0.1, 0.12), border=True, size=(0.2, 0.16), loc="upper left", face=None)
+    plotter.show_axes()
+    # seen from the scene camera's right, a little beyond the scene and above: the frustum runs across the
+    # picture from the eye to the scene, and the slices face the viewer at an angle
+    right = np.cross(forward, cam.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    _fit_view(plotter, np.vstack(fit), right + VIEW_BEYOND * forward + VIEW_ABOVE * up, up)
+
+
+def _parse_slice(text):
+    axis, sep, value = str(text).partition("=")
+    axis = axis.strip().lower()
+    try:
+        number = float(value)
+    except ValueError:
+        number = None
+    if not sep or axis not in ("x", "y", "z") or number is None or not np.isfinite(number):
+        raise InputError(f"--slice: expected AXIS=VALUE with AXIS one of x, y, z and VALUE a number in scene "
+                         f"units (e.g. z=2.0), got {text!r}")
+    return "xyz".index(axis), number
+
+
+def draw_slice(plotter, scene, axis, value, resolution):
+    """One plane ``axis`` = ``value`` sampled exactly (not interpolated from the 3D grid), coloured by sigma_t,
+    with the contour F = T of every blob on it. Returns the plane (a pyvista.ImageData)."""
+    lo, hi = _default_bounds(scene)
+    if not lo[axis] <= value <= hi[axis]:
+        raise InputError(f"--slice: {'xyz'[axis]}={value:g} is outside the scene, whose {'xyz'[axis]} runs "
+                         f"from {lo[axis]:.4g} to {hi[axis]:.4g} (bounding box with 5 % margin)")
+    lo, hi = lo.copy(), hi.copy()
+    lo[axis] = hi[axis] = value
+    plane = _sample(scene, *_geometry(lo, hi, resolution, 1))
+    scalars, title = _density_array(plane)
+    plotter.add_mesh(plane, scalars=scalars, cmap=CMAP, clim=_scalar_range(plane.point_data[scalars]),
+                     scalar_bar_args=_bar(title))
+    names = "xyz"
+    (plotter.view_yz, plotter.view_xz, plotter.view_xy)[axis]()
+    # contour lines lifted a hair towards the viewer, so that they are never hidden in the plane
+    towards_viewer = np.array(plotter.camera.position) - np.array(plotter.camera.focal_point)
+    lift = np.zeros(3)
+    lift[axis] = np.sign(towards_viewer[axis]) * 1e-3 * float(np.linalg.norm(hi - lo))
+    labelled = False
+    for name, blob, label, colour, _ in _things(scene):
+        iso = _contour(plane, name, blob.threshold)
+        if iso is not None:
+            plotter.add_mesh(iso.translate(lift, inplace=False), color=colour, line_width=3, label=label,
+                             show_scalar_bar=False)
+            labelled = True
+    plotter.add_text(f"{names[axis]} = {value:g}", position="upper_edge", font_size=14, color="white")
+    titles = {f"{c}title": f"{c} [length]" for c in names}
+    plotter.show_bounds(bounds=plane.bounds, color="white", font_size=10, **titles)
+    if labelled:
+        plotter.add_legend(bcolor=(0.1, 0.1, 0.12), border=True, size=(0.25, 0.08), loc="lower left", face=None)
+    plotter.reset_camera()
+    return plane
+
+
+# -------------------------------------------------------------------------------------------- command
+
+def _check_output(option, path, suffixes):
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise InputError(f"{option}: expected a path ending in {' or '.join(suffixes)}, got {path!r}")
+    if not p.parent.is_dir() and str(p.parent) != "":
+        raise InputError(f"{option}: the folder {str(p.parent)!r} does not exist")
+    return str(p)
+
+
+def _describe_grid(grid):
+    nx, ny, nz = grid.dimensions
+    return f"{nx} x {ny} x {nz} samples, spacing {grid.spacing[0]:.4g}"
+
+
+def inspect_command(args):
+    """``cloudmeta inspect SCENE [--screenshot PNG] [--save VTI] [--resolution N] [--slice AXIS=VALUE]``.
+
+    With --screenshot the picture is rendered off screen and written there (no window, no display needed).
+    Without it a window opens; where there is no display, --save alone writes the grid and opens nothing.
+    --slice samples its plane SLICE_REFINE times finer than --resolution asks for the 3D grid.
+    """
+    import pyvista as pv
+
+    scene = load_scene(args.scene)
+    resolution = _check_resolution(args.resolution)
+    screenshot = _check_output("--screenshot", args.screenshot, SCREENSHOT_SUFFIXES) if args.screenshot else None
+    save = _check_output("--save", args.save, (".vti",)) if args.save else None
+    plane = _parse_slice(args.slice) if args.slice is not None else None
+    window = screenshot is None
+    if window and not _has_display():
+        if save is None:
+            raise InputError("there is no display to open a window on (DISPLAY is not set): give --screenshot "
+                             "PATH.png to render off screen, or --save PATH.vti to write the grid")
+        window = False
+
+    grid = None
+    if plane is None or save is not None:
+        grid = sample_grid(scene, resolution)
+        print(f"cloudmeta: sampled {args.scene}: {_describe_grid(grid)}")
+    if save is not None:
+        grid.save(save)
+        print(f"cloudmeta: wrote {save} (arrays: {', '.join(grid.point_data.keys())})")
+    if not window and screenshot is None:
+        return 0
+
+    if screenshot is not None:
+        _prepare_off_screen()
+    plotter = pv.Plotter(off_screen=screenshot is not None, window_size=WINDOW_SIZE)
+    plotter.set_background((0.08, 0.09, 0.12), top=(0.30, 0.34, 0.42))
+    try:
+        if plane is not None:
+            axis, value = plane
+            sampled = draw_slice(plotter, scene, axis, value, SLICE_REFINE * resolution)
+            nx, ny, nz = sampled.dimensions
+            print(f"cloudmeta: slice {'xyz'[axis]}={value:g}: {nx * ny * nz} samples, spacing "
+                  f"{sampled.spacing[0]:.4g}")
+        else:
+            draw_volume(plotter, scene, grid, widgets=screenshot is None)
+        if screenshot is not None:
+            plotter.screenshot(screenshot)
+            print(f"cloudmeta: wrote {screenshot}")
+        else:
+            plotter.show(title=f"cloudmeta inspect {args.scene}")
+    finally:
+        plotter.close()
+    return 0

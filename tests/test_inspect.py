@@ -1,0 +1,227 @@
+"""cloudmeta.inspect and kernels/grid: the culled grid sampler equals cloudmeta.field, the grid's geometry is
+right, sigma_t follows MODEL.md §4, and ``cloudmeta inspect`` writes pictures and grids off screen."""
+import numpy as np
+import pytest
+import pyvista as pv
+import yaml
+from matplotlib.image import imread
+
+import cloudmeta as cm
+from cloudmeta.cli import main
+from cloudmeta.errors import InputError
+from cloudmeta.inspect import _cull_cells, draw_volume, sample_grid
+from cloudmeta.kernels.grid import bin_balls
+from tests.conftest import random_blob
+
+SCENE = {
+    "image": {"width": 64, "height": 48},
+    "camera": {"position": [0, -9, 1], "look_at": [0, 0, 0.5], "up": [0, 0, 1], "fov": 35},
+    "lights": [{"type": "directional", "direction": [0.5, -0.4, 0.8], "irradiance": 3.0},
+               {"type": "point", "position": [2.5, -1, 2], "intensity": 10.0}],
+    "media": [{"name": "puff", "kernel": "wyvill6", "threshold": 0.5, "density": {"mode": "field", "scale": 2.5},
+               "balls": [{"center": [0, 0, 0.5], "radius": 1.6, "weight": 1.0},
+                         {"center": [1.0, 0.2, 0.9], "radii": [1.2, 0.8, 0.7], "rotation": [0, 20, 30],
+                          "weight": 0.9},
+                         {"center": [-0.4, -0.5, 1.2], "radius": 0.8, "weight": -0.4}]}],
+}
+
+
+def write_scene(tmp_path, scene=SCENE, name="scene.yaml"):
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(scene))
+    return str(path)
+
+
+def assert_matches_field(grid, blob):
+    got = grid.point_data["field"]
+    ref = cm.field(blob, grid.points)
+    assert np.count_nonzero(ref) > 50
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------- the grid sampler
+
+@pytest.mark.parametrize("kernel", ["wyvill6", "murakami4", "nishimura", "blinn"])
+@pytest.mark.parametrize("ellipsoids,negative", [(False, False), (True, False), (True, True)])
+def test_grid_equals_the_field(rng, kernel, ellipsoids, negative):
+    blob = random_blob(rng, 25, kernel, ellipsoids, negative)
+    assert_matches_field(sample_grid(blob, 33), blob)
+
+
+def test_grid_equals_the_field_where_the_cull_matters(rng):
+    # 400 small balls spread over a large box: each cell lists a few of them
+    n = 400
+    blob = cm.Blob(rng.uniform(-15, 15, (n, 3)), rng.uniform(0.8, 2.0, (n, 3)), rng.uniform(-0.5, 1.5, n),
+                   rotations=rng.uniform(0, 360, (n, 3)))
+    cell_origin, cell_size, cell_dims, pad = _cull_cells(blob)
+    cell_start, _ = bin_balls(blob.bounds, pad, cell_origin, cell_size, cell_dims)
+    assert np.prod(cell_dims) > 100 and np.diff(cell_start).max() < n / 10
+    assert_matches_field(sample_grid(blob, 64), blob)
+
+
+def test_grid_equals_the_field_with_balls_far_apart(rng):
+    # two clusters 1000 units apart: the cull grid is capped, and a grid over one cluster is still exact
+    a = rng.uniform(-2, 2, (30, 3))
+    blob = cm.Blob(np.vstack([a, a + 1000.0]), rng.uniform(0.6, 1.8, 60), rng.uniform(-0.5, 1.5, 60),
+                   kernel="blinn")
+    cell_origin, cell_size, cell_dims, pad = _cull_cells(blob)
+    assert np.prod(cell_dims) <= (1 << 21)
+    for shift in (0.0, 1000.0):
+        assert_matches_field(sample_grid(blob, 40, bounds=(np.full(3, shift - 4.0), np.full(3, shift + 4.0))), blob)
+
+
+def test_geometry_of_given_bounds():
+    blob = cm.Blob([[5, 2.5, 1]], [1.0])
+    for bounds in (((0, 0, 0), (10, 5, 2)), (0, 10, 0, 5, 0, 2)):
+        grid = sample_grid(blob, 21, bounds=bounds)
+        assert grid.dimensions == (21, 11, 5)
+        np.testing.assert_allclose(grid.spacing, 0.5, rtol=1e-14)
+        np.testing.assert_allclose(grid.origin, 0.0, atol=1e-14)
+        np.testing.assert_allclose(grid.points[1] - grid.points[0], [0.5, 0, 0], atol=1e-14)  # x fastest
+        np.testing.assert_allclose(grid.points[-1], [10, 5, 2], atol=1e-13)
+
+
+def test_geometry_of_default_bounds(rng):
+    blob = random_blob(rng, 10, ellipsoids=True)
+    grid = sample_grid(blob, 30)
+    lo, hi = blob.bbox
+    h = grid.spacing[0]
+    assert grid.spacing == (h, h, h)
+    assert max(grid.dimensions) == 30
+    b = np.array(grid.bounds)
+    assert np.all(b[0::2] < lo) and np.all(b[1::2] > hi)  # padded
+    assert np.all(b[1::2] - b[0::2] < (hi - lo) * 1.2 + 2 * h)  # slightly
+
+
+def test_sphere_contour_has_the_analytic_radius():
+    # wyvill6 at T = 0.5: (1 - u)^2 (1 - 4u/9) = 1/2 at u = 1/4, so the isosurface is a sphere of radius R/2
+    centre, radius = np.array([0.3, -0.2, 0.1]), 2.0
+    grid = sample_grid(cm.Blob([centre], [radius], kernel="wyvill6", threshold=0.5), 48)
+    iso = grid.contour([0.5], scalars="field")
+    r = np.linalg.norm(iso.points - centre, axis=1)
+    assert iso.n_points > 100
+    assert np.all(np.abs(r - radius / 2) < grid.spacing[0])
+
+
+@pytest.mark.parametrize("mode", ["field", "excess", "uniform"])
+def test_sigma_t_is_zero_outside_and_scaled_density_inside(tmp_path, mode):
+    scene_dict = yaml.safe_load(yaml.safe_dump(SCENE))
+    scene_dict["media"][0]["density"]["mode"] = mode
+    scene = cm.load_scene(write_scene(tmp_path, scene_dict))
+    grid = sample_grid(scene, 32)
+    f, s, t = grid.point_data["field"], grid.point_data["sigma_t"], 0.5
+    inside = f >= t
+    assert 0 < np.count_nonzero(inside) < len(f)
+    np.testing.assert_array_equal(s[~inside], 0.0)
+    rho = {"field": f, "excess": f - t, "uniform": np.ones_like(f)}[mode]
+    np.testing.assert_allclose(s[inside], 2.5 * rho[inside], rtol=1e-15)
+    assert_matches_field(grid, scene.media[0].blob)
+
+
+def test_arrays_of_several_media_and_surfaces(tmp_path):
+    scene_dict = yaml.safe_load(yaml.safe_dump(SCENE))
+    other = dict(scene_dict["media"][0], name="mist", density={"mode": "uniform", "scale": 0.5})
+    scene_dict["media"].append(other)
+    scene_dict["surfaces"] = [{"name": "rock", "balls": [{"center": [0, 0, -1], "radius": 1.0}]},
+                              {"name": "puff", "balls": [{"center": [1, 0, -1], "radius": 1.0}]}]
+    grid = sample_grid(cm.load_scene(write_scene(tmp_path, scene_dict)), 24)
+    names = set(grid.point_data.keys())
+    assert names == {"field:puff", "field:mist", "sigma_t:puff", "sigma_t:mist", "sigma_t", "field:rock",
+                     "field:surface:puff"}
+    np.testing.assert_allclose(grid.point_data["sigma_t"],
+                               grid.point_data["sigma_t:puff"] + grid.point_data["sigma_t:mist"])
+    assert grid.field_data["threshold:field:rock"][0] == 0.5
+
+
+@pytest.mark.parametrize("kwargs,word", [
+    (dict(resolution=1), "resolution"), (dict(resolution=2.5), "resolution"), (dict(resolution=True), "resolution"),
+    (dict(resolution=100000), "resolution"), (dict(bounds=(0, 1, 2)), "bounds"),
+    (dict(bounds=((0, 0, 0), (1, 0, 1))), "bounds"), (dict(bounds=((0, 0, 0), (1, np.nan, 1))), "bounds"),
+])
+def test_bad_arguments_name_themselves(kwargs, word):
+    with pytest.raises(InputError, match=word):
+        sample_grid(cm.Blob([[0, 0, 0]], [1.0]), **kwargs)
+    with pytest.raises(InputError, match="scene_or_blob"):
+        sample_grid("scene.yaml")
+
+
+# ---------------------------------------------------------------------------------------- the command
+
+def assert_picture(path):
+    image = imread(path)
+    assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
+    pixels = image[..., :3].reshape(-1, 3)
+    assert np.ptp(pixels, axis=0).max() > 0.3  # not one colour
+    assert len(np.unique(np.round(pixels * 255), axis=0)) > 50
+
+
+def test_screenshot(tmp_path, capsys):
+    png = tmp_path / "inspect.png"
+    assert main(["inspect", write_scene(tmp_path), "--screenshot", str(png), "--resolution", "32"]) == 0
+    assert png.stat().st_size > 0
+    assert_picture(png)
+    assert f"wrote {png}" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("plane", ["z=0.7", "x=-0.3", "y=0"])
+def test_slice_screenshot(tmp_path, capsys, plane):
+    png = tmp_path / "slice.png"
+    assert main(["inspect", write_scene(tmp_path), "--slice", plane, "--screenshot", str(png),
+                 "--resolution", "32"]) == 0
+    assert_picture(png)
+    assert f"wrote {png}" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("plane,message", [("w=1", "--slice: expected AXIS=VALUE"), ("z", "--slice"),
+                                           ("z=abc", "--slice"), ("z=50", "outside the scene")])
+def test_bad_slice_is_an_error(tmp_path, capsys, plane, message):
+    png = tmp_path / "slice.png"
+    assert main(["inspect", write_scene(tmp_path), "--slice", plane, "--screenshot", str(png)]) == 2
+    assert message in capsys.readouterr().err
+    assert not png.exists()
+
+
+def test_save_writes_a_grid_that_reads_back(tmp_path, capsys):
+    path = write_scene(tmp_path)
+    vti = tmp_path / "grid.vti"
+    assert main(["inspect", path, "--save", str(vti), "--screenshot", str(tmp_path / "x.png"),
+                 "--resolution", "24"]) == 0
+    back = pv.read(vti)
+    ref = sample_grid(cm.load_scene(path), 24)
+    assert back.dimensions == ref.dimensions
+    np.testing.assert_allclose(back.origin, ref.origin, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(back.spacing, ref.spacing, rtol=1e-15)
+    assert set(back.point_data.keys()) == {"field", "sigma_t"}
+    for name in ("field", "sigma_t"):
+        np.testing.assert_array_equal(back.point_data[name], ref.point_data[name])
+    assert back.field_data["threshold:field"][0] == 0.5
+    assert f"wrote {vti}" in capsys.readouterr().out
+
+
+def test_without_a_display(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("sys.platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    path = write_scene(tmp_path)
+    assert main(["inspect", path]) == 2
+    assert "--screenshot" in capsys.readouterr().err
+    vti = tmp_path / "grid.vti"
+    assert main(["inspect", path, "--save", str(vti), "--resolution", "16"]) == 0  # writes, opens nothing
+    assert vti.exists()
+
+
+@pytest.mark.parametrize("option,path", [("--save", "grid.vtk"), ("--screenshot", "picture.pdf"),
+                                         ("--screenshot", "no/such/folder/x.png")])
+def test_bad_output_paths_are_errors(tmp_path, capsys, option, path):
+    assert main(["inspect", write_scene(tmp_path), option, str(tmp_path / path)]) == 2
+    assert option in capsys.readouterr().err
+
+
+def test_the_window_view_builds_with_slice_widgets(tmp_path):
+    scene = cm.load_scene(write_scene(tmp_path))
+    plotter = pv.Plotter(off_screen=True)
+    try:
+        draw_volume(plotter, scene, sample_grid(scene, 24), widgets=True)
+        assert len(plotter.widgets.plane_widgets) == 3
+    finally:
+        plotter.close()
