@@ -10,6 +10,7 @@ nodes           2       3       4       6          Gauss-Legendre nodes per quad
 max_tau         1.0     0.5     0.25    0.05       largest optical depth of one step
 max_length      1/8     1/16    1/32    1/128      longest step, as a fraction of the scene's diagonal
                                                    (an explicit ``max_length`` is in scene units)
+max_angle       0.4     0.2     0.1     0.025      widest angle (radians) of a step seen from a point light
 cutoff          1e-2    1e-3    1e-4    0          stop shading once the view transmittance is below
 root_tolerance  1e-9    1e-9    1e-9    1e-9       root tolerance, relative to the scene's diagonal
 =============== ======= ======= ======= ========== ====================================================
@@ -30,15 +31,19 @@ from .engine import DENSITY_MODES, n_chunks
 from .errors import CloudmetaError
 from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
 from .kernels.radiance import DIRECTIONAL, POINT, render_rows
+from .kernels.shadowmap import trace_texels
 from .scene import DirectionalLight, RenderSettings, Scene
 
 PRESETS = {
-    "draft": dict(nodes=2, max_tau=1.0, max_length=1 / 8, cutoff=1e-2, root_tolerance=1e-9),
-    "default": dict(nodes=3, max_tau=0.5, max_length=1 / 16, cutoff=1e-3, root_tolerance=1e-9),
-    "fine": dict(nodes=4, max_tau=0.25, max_length=1 / 32, cutoff=1e-4, root_tolerance=1e-9),
-    "reference": dict(nodes=6, max_tau=0.05, max_length=1 / 128, cutoff=0.0, root_tolerance=1e-9),
+    "draft": dict(nodes=2, max_tau=1.0, max_length=1 / 8, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
+    "default": dict(nodes=3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-3, root_tolerance=1e-9),
+    "fine": dict(nodes=4, max_tau=0.25, max_length=1 / 32, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
+    "reference": dict(nodes=6, max_tau=0.05, max_length=1 / 128, max_angle=0.025, cutoff=0.0,
+                      root_tolerance=1e-9),
 }
 PHASES = {"isotropic": ISOTROPIC, "hg": HG, "double_hg": DOUBLE_HG, "rayleigh": RAYLEIGH}
+#: texels per side of a shadow map when render.shadow_map is not given
+SHADOW_MAP_RESOLUTION = 384
 #: rows per kernel call: the progress bar moves once per band
 BAND_ROWS = 8
 
@@ -49,6 +54,7 @@ class Quality:
     nodes: int
     max_tau: float
     max_length: float
+    max_angle: float
     cutoff: float
     tol_t: float
 
@@ -58,7 +64,8 @@ def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
     pick = lambda key: preset[key] if getattr(settings, key) is None else getattr(settings, key)  # noqa: E731
     max_length = preset["max_length"] * diagonal if settings.max_length is None else settings.max_length
     return Quality(nodes=int(pick("nodes")), max_tau=float(pick("max_tau")), max_length=float(max_length),
-                   cutoff=float(pick("cutoff")), tol_t=float(pick("root_tolerance")) * diagonal)
+                   max_angle=float(pick("max_angle")), cutoff=float(pick("cutoff")),
+                   tol_t=float(pick("root_tolerance")) * diagonal)
 
 
 @dataclass(frozen=True)
@@ -120,13 +127,58 @@ def pack_media(media) -> PackedMedia:
         bvh=merge_bvhs(blobs, np.concatenate([[0], np.cumsum(counts)])[:-1]))
 
 
-def pack_lights(lights):
+def pack_lights(lights, maps=None):
+    """The ``lights`` tuple of cloudmeta.kernels.radiance; ``maps`` from build_shadow_maps, or None for
+    exact shadow rays towards every light."""
     kind = np.array([DIRECTIONAL if isinstance(l, DirectionalLight) else POINT for l in lights], np.int64).reshape(-1)
     vec = np.array([l.direction if isinstance(l, DirectionalLight) else l.position for l in lights],
                    np.float64).reshape(-1, 3)
     rgb = np.array([l.irradiance if isinstance(l, DirectionalLight) else l.intensity for l in lights],
                    np.float64).reshape(-1, 3)
-    return kind, vec, rgb
+    if maps is None:
+        maps = (np.full(len(lights), -1, np.int64), np.zeros((0, 13)), np.zeros(0, np.int64),
+                np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 7)),
+                np.zeros(0), np.zeros(0))
+    return (kind, vec, rgb, *maps)
+
+
+def build_shadow_maps(lights, med, lo, hi, resolution, tol_t):
+    """A shadow map per directional light over the bounding sphere of the box [lo, hi]
+    (cloudmeta.kernels.shadowmap). Returns (map_of, geo, res, base, start, t0, t1, c, cum, reach)."""
+    centre = 0.5 * (lo + hi)
+    radius = 0.5 * float(np.linalg.norm(hi - lo)) * 1.01
+    map_of = np.full(len(lights), -1, np.int64)
+    geos, parts, bases, offset = [], [], [], 0
+    for i, light in enumerate(lights):
+        if not isinstance(light, DirectionalLight):
+            continue
+        l = np.asarray(light.direction, np.float64)
+        helper = np.array([1.0, 0, 0]) if abs(l[0]) < 0.9 else np.array([0, 1.0, 0])
+        e1 = np.cross(l, helper)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(l, e1)
+        origin = centre + l * radius - (e1 + e2) * radius
+        geo = np.concatenate([origin, e1, e2, -l, [2 * radius / resolution]])
+        n = resolution * resolution
+        counts = np.zeros(n, np.int64)
+        dummy = (np.zeros(1, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 7)), np.zeros(0), np.zeros(0))
+        trace_texels(geo, resolution, med, tol_t, n_chunks(n), False, counts, *dummy)
+        start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        p = int(start[-1])
+        arrays = (np.empty(p), np.empty(p), np.empty((p, 7)), np.empty(p), np.empty(p))
+        trace_texels(geo, resolution, med, tol_t, n_chunks(n), True, counts, start, *arrays)
+        map_of[i] = len(geos)
+        geos.append(geo)
+        bases.append(offset)
+        parts.append((start, arrays))
+        offset += n
+    if not geos:
+        return None
+    piece_offsets = np.cumsum([0] + [int(st[-1]) for st, _ in parts])
+    start = np.concatenate([st[:-1] + po for (st, _), po in zip(parts, piece_offsets)] + [[piece_offsets[-1]]])
+    cat = [np.ascontiguousarray(np.concatenate([a[k] for _, a in parts])) for k in range(5)]
+    return (map_of, np.array(geos), np.full(len(geos), resolution, np.int64), np.array(bases, np.int64),
+            start.astype(np.int64), *cat)
 
 
 def camera_basis(camera, width, height):
@@ -150,14 +202,17 @@ def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
     """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha."""
     if scene.surfaces:
         raise CloudmetaError("opaque surfaces are not rendered yet (surfaces: is reserved for them)")
-    if scene.render.shadows != "exact":
-        raise CloudmetaError(f"render.shadows: {scene.render.shadows!r} is not available yet; use 'exact'")
     lo, hi = scene.bbox()
     q = resolve_quality(scene.render, float(np.linalg.norm(hi - lo)))
     media = pack_media(scene.media)
     med = media.args()
-    lights = pack_lights(scene.lights)
-    quad = (*gauss_legendre(q.nodes), q.max_tau, q.max_length, q.cutoff, q.tol_t)
+    maps = None
+    if scene.render.shadows == "map" and scene.media:
+        mlo, mhi = _media_bbox(scene)
+        maps = build_shadow_maps(scene.lights, med, mlo, mhi, scene.render.shadow_map or SHADOW_MAP_RESOLUTION,
+                                 q.tol_t)
+    lights = pack_lights(scene.lights, maps)
+    quad = (*gauss_legendre(q.nodes), q.max_tau, q.max_length, q.max_angle, q.cutoff, q.tol_t)
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     fwd, right, up = camera_basis(scene.camera, w, h)
     # fresh writable copies: numba types read-only arrays apart, and a second type means a second compile
@@ -173,6 +228,11 @@ def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
         bar.update(row1 - row0)
     bar.close()
     return image.astype(np.float32)
+
+
+def _media_bbox(scene):
+    boxes = [m.blob.bbox for m in scene.media]
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
 
 class _NoBar:

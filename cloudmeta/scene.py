@@ -107,6 +107,7 @@ class RenderSettings:
     nodes: int | None = None
     max_tau: float | None = None
     max_length: float | None = None
+    max_angle: float | None = None  #: radians, seen from a point light
     cutoff: float | None = None
     root_tolerance: float | None = None  #: relative to the scene's bounding-box diagonal
     shadows: str = "exact"
@@ -492,6 +493,7 @@ def _render(top):
         nodes=n.integer("nodes", None, **_POSITIVE_INT),
         max_tau=n.number("max_tau", None, **_POSITIVE),
         max_length=n.number("max_length", None, **_POSITIVE),
+        max_angle=n.number("max_angle", None, check=lambda v: 0 < v <= 1.6, expect="an angle in (0, 1.6] radians"),
         cutoff=n.number("cutoff", None, check=lambda v: 0 <= v < 1, expect="a number in [0, 1)"),
         root_tolerance=n.number("root_tolerance", None, **_POSITIVE),
         shadows=n.choice("shadows", SHADOW_MODES, "exact"),

@@ -124,3 +124,22 @@ def test_phase_functions_integrate_to_one():
         assert total == pytest.approx(1.0, rel=1e-10)
     # g > 0 brightens clouds seen against the light: cos = l . d = 1 is forward
     assert phase(HG, 0.6, 0, 1, 1.0) > phase(HG, 0.6, 0, 1, -1.0)
+
+
+@pytest.mark.parametrize("h", [0.3, 0.02])
+def test_point_light_inside_a_ball_matches_quadrature(tmp_path, h):
+    """A point light at the centre of a uniform ball, the view ray passing at distance h from it: the
+    1/r^2 peak is sharp for small h. Reference: scipy quad of the single-scattering integral."""
+    from scipy.integrate import quad
+    I = 3.0
+    s = one_ball(tmp_path, lights=f"[{{type: point, position: [0, 0, 0], intensity: {I}}}]",
+                 background="[0, 0, 0]", camera=f"{{position: [0, -6, {h}], look_at: [0, 0, {h}], up: [0, 0, 1], fov: 1}}")
+    img = render(s, progress=False)
+    half = math.sqrt(R * R - h * h)
+
+    def integrand(x):  # x: position along the chord from its middle; the light is at distance r
+        r2 = h * h + x * x
+        return math.exp(-SIGMA * (x + half)) * SIGMA / (4 * math.pi) * I * math.exp(-SIGMA * math.sqrt(r2)) / r2
+
+    ref = quad(integrand, -half, half, points=[0.0], epsabs=0, epsrel=1e-12, limit=400)[0]
+    np.testing.assert_allclose(img[0, 0, :3], ref, rtol=1e-6)

@@ -7,14 +7,16 @@ and their polynomials are added, exactly as the engine composites balls. On each
 - the view optical depth tau(0, t) is exact at any t (the antiderivative of a Bernstein polynomial);
 - the in-scattering integral is taken in optical depth u, where T sigma_s dt = e^-u (sigma_s/sigma_t) du:
   a Gauss-Legendre rule on steps no thicker than ``max_tau`` and no longer than ``max_length``, with an
-  exact shadow ray from every node to every light.
+  exact shadow ray from every node to every light; near point lights the interval is first cut at equal
+  angles (at most ``max_angle``) seen from the light, which tames their 1/r^2.
 
 Three tuples carry the scene (see cloudmeta.render.PackedMedia.args for the order):
   med    = (centers, frames, weights, start, kernel, threshold, mode, scale, albedo, phase,
             node_box, node_a, node_b, node_n, items, root)       -- every medium's balls and its BVH
-  lights = (kind, vec, rgb): kind 0 directional (vec towards the light, rgb irradiance),
-           kind 1 point (vec its position, rgb intensity)
-  quad   = (gl_x, gl_w, max_tau, max_length, cutoff, tol_t)
+  lights = (kind, vec, rgb, map_of, <one shadowmap's arrays: geo, res, base, start, t0, t1, c, cum,
+            reach>): kind 0 directional (vec towards the light, rgb irradiance), kind 1 point (vec its
+            position, rgb intensity); map_of[l] is the light's shadow map, or -1 for exact shadow rays
+  quad   = (gl_x, gl_w, max_tau, max_length, max_angle, cutoff, tol_t)
 """
 import math
 
@@ -24,78 +26,13 @@ from numba import njit, prange
 from ..config import NJIT, NJIT_PARALLEL
 from .bernstein import NCOEF, bernstein_cumulative, bernstein_mean, subdivide
 from .optics import phase
-from .bvh import STACK, bvh_candidates
-from .sweep import (DENSITY_EXCESS, DENSITY_UNIFORM, alloc_scratch, heap_argsort, heap_sort,
-                    pieces_optical_depth, trace_blob)
+from .bvh import STACK
+from .media import alloc_ray_pieces, collect_media, shadow_transmittance
+from .shadowmap import map_optical_depth
+from .sweep import alloc_scratch, heap_argsort, heap_sort
 
 DIRECTIONAL = 0
 POINT = 1
-
-
-@njit(**NJIT)
-def alloc_ray_pieces(capacity):
-    """Pieces of all media on one ray: t0, t1, sigma_t control values, medium; plus the interval sweep's
-    breakpoints, start order, active list and the active pieces' polynomials on the current interval."""
-    p = max(capacity, 1)
-    return (np.empty(p), np.empty(p), np.empty((p, NCOEF)), np.empty(p, np.int64),
-            np.empty(2 * p), np.empty(p, np.int64), np.empty(p, np.int64), np.empty((p, NCOEF)))
-
-
-@njit(**NJIT)
-def medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack):
-    """Inside pieces of medium m on the ray (in scratch); returns (scratch, n_pieces)."""
-    centers, frames, weights, start, kernel, threshold = med[0], med[1], med[2], med[3], med[4], med[5]
-    n_cand = bvh_candidates(o, d, 0.0, tmax, med[15][m], med[10], med[11], med[12], med[13], med[14],
-                            stack, cand)
-    if n_cand == 0:
-        return scratch, 0
-    scratch, n_out, _ = trace_blob(o, d, 0.0, tmax, centers, frames, weights, kernel[m], threshold[m], tol_t,
-                                   cand, n_cand, False, scratch)
-    return scratch, n_out
-
-
-@njit(**NJIT)
-def collect_media(o, d, tmax, med, tol_t, scratch, rp, cand, stack):
-    """Trace the ray through every medium; copy each inside piece, as sigma_t, into rp.
-    Returns (scratch, rp, number of pieces)."""
-    threshold, mode, scale_m = med[5], med[6], med[7]
-    n = 0
-    for m in range(med[3].shape[0] - 1):
-        scratch, n_out = medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack)
-        if n + n_out > rp[0].shape[0]:
-            bigger = alloc_ray_pieces(2 * (n + n_out))
-            bigger[0][:n] = rp[0][:n]
-            bigger[1][:n] = rp[1][:n]
-            bigger[2][:n] = rp[2][:n]
-            bigger[3][:n] = rp[3][:n]
-            rp = bigger
-        o_t0, o_t1, o_c = scratch[10], scratch[11], scratch[12]
-        scale = scale_m[m]
-        for k in range(n_out):
-            rp[0][n] = o_t0[k]
-            rp[1][n] = o_t1[k]
-            for q in range(NCOEF):
-                if mode[m] == DENSITY_UNIFORM:
-                    rp[2][n, q] = scale
-                elif mode[m] == DENSITY_EXCESS:
-                    rp[2][n, q] = scale * (o_c[k, q] - threshold[m])
-                else:
-                    rp[2][n, q] = scale * o_c[k, q]
-            rp[3][n] = m
-            n += 1
-    return scratch, rp, n
-
-
-@njit(**NJIT)
-def shadow_transmittance(x, l, tmax, med, tol_t, tau_stop, scratch, cand, stack):
-    """T_l = exp(-tau) from x along l up to tmax through every medium; stops once tau > tau_stop."""
-    tau = 0.0
-    for m in range(med[3].shape[0] - 1):
-        scratch, n_out = medium_pieces(x, l, tmax, med, m, tol_t, scratch, cand, stack)
-        tau += pieces_optical_depth(n_out, med[6][m], med[5][m], med[7][m], scratch)
-        if tau > tau_stop:
-            break
-    return scratch, math.exp(-tau)
 
 
 @njit(**NJIT)
@@ -134,9 +71,44 @@ def _depth_to_s(S, w, u, s_lo, cum, work):
 
 
 @njit(**NJIT)
+def _angular_cuts(o, d, ta, tb, light_kind, light_vec, max_angle, tol_t):
+    """Equal-angle cuts of [ta, tb] as seen from the point light that sees it under the widest angle:
+    returns (n_sub, t_c, h, theta_a, d_theta), t = t_c + h tan(theta); n_sub = 1 without point lights."""
+    best = 1
+    t_c = 0.0
+    h_best = 1.0
+    th_a = 0.0
+    d_th = 0.0
+    for li in range(light_kind.shape[0]):
+        if light_kind[li] == DIRECTIONAL:
+            continue
+        tc = 0.0
+        for c in range(3):
+            tc += (light_vec[li, c] - o[c]) * d[c]
+        h2 = 0.0
+        for c in range(3):
+            q = o[c] + tc * d[c] - light_vec[li, c]
+            h2 += q * q
+        h = max(math.sqrt(h2), tol_t)
+        a = math.atan((ta - tc) / h)
+        b = math.atan((tb - tc) / h)
+        n = int(math.ceil((b - a) / max_angle))
+        if n > best:
+            best = n
+            t_c = tc
+            h_best = h
+            th_a = a
+            d_th = (b - a) / n
+    return best, t_c, h_best, th_a, d_th
+
+
+@njit(**NJIT)
 def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l_dir, light_buf):
     """Per light: light_buf[li, 0] = cos theta = l . d, light_buf[li, 1:4] = E_l T_l at pos."""
-    light_kind, light_vec, light_rgb = lights
+    light_kind, light_vec, light_rgb, map_of = lights[0], lights[1], lights[2], lights[3]
+    geo, res, base, start, t0, t1, c_map, cum, reach = (lights[4], lights[5], lights[6], lights[7], lights[8],
+                                                        lights[9], lights[10], lights[11], lights[12])
+    work = light_buf[-1]
     for li in range(light_kind.shape[0]):
         if light_kind[li] == DIRECTIONAL:
             for c in range(3):
@@ -152,7 +124,12 @@ def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l
                 l_dir[c] /= l_max
             e_scale = 1.0 / dist2
         light_buf[li, 0] = l_dir[0] * d[0] + l_dir[1] * d[1] + l_dir[2] * d[2]
-        scratch, t_l = shadow_transmittance(pos, l_dir, l_max, med, tol_t, tau_stop, scratch, cand, stack)
+        mi = map_of[li]
+        if mi >= 0:
+            t_l = math.exp(-map_optical_depth(pos, geo[mi], res[mi], base[mi], start, t0, t1, c_map, cum, reach,
+                                              work))
+        else:
+            scratch, t_l = shadow_transmittance(pos, l_dir, l_max, med, tol_t, tau_stop, scratch, cand, stack)
         for c in range(3):
             light_buf[li, 1 + c] = light_rgb[li, c] * e_scale * t_l
     return scratch
@@ -165,8 +142,8 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
     Returns (scratch, rp): the work arrays, grown if this ray needed more room.
     """
     med_albedo, med_phase = med[8], med[9]
-    light_kind, light_vec, light_rgb = lights
-    gl_x, gl_w, max_tau, max_length, cutoff, tol_t = quad
+    light_kind = lights[0]
+    gl_x, gl_w, max_tau, max_length, max_angle, cutoff, tol_t = quad
     scratch, rp, n = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
     out[0] = 0.0
     out[1] = 0.0
@@ -227,37 +204,52 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
         w = tb - ta
         tau_iv = w * bernstein_mean(S)
         if shading and scatters and tau_iv > 0.0:
-            # in optical depth u = tau(ta, t): T sigma_s dt = e^-u (sigma_s / sigma_t) du, so the nodes
-            # need not resolve the exponential; t(u) is found on the exact antiderivative
-            n_steps = max(1, int(math.ceil(max(tau_iv / max_tau, w / max_length))))
-            h = tau_iv / n_steps
+            # near a point light E ~ 1/r^2 peaks: cut the interval at equal angles seen from the light
+            # whose angle is widest (t = t_c + h tan(theta) makes dt / r^2 = d(theta) / h smooth)
+            n_sub, t_c, h_l, th_a, d_th = _angular_cuts(o, d, ta, tb, light_kind, lights[1], max_angle, tol_t)
+            u_end = 0.0
             s_prev = 0.0
-            for st in range(n_steps):
-                for g in range(gl_x.shape[0]):
-                    u = (st + gl_x[g]) * h
-                    s = _depth_to_s(S, w, u, s_prev, cum, work)
-                    s_prev = s
-                    sigma_t = _bernstein_at(S, s, work)
-                    if sigma_t <= 0.0:
-                        continue
-                    t = ta + s * w
-                    for c in range(3):
-                        pos[c] = o[c] + t * d[c]
-                    scratch = _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack,
-                                             l_dir, light_buf)
-                    weight = gl_w[g] * h * math.exp(-(tau_acc + u)) / sigma_t
-                    for q in range(n_act):
-                        m = p_m[act[q]]
-                        sigma_s = med_albedo[m] * _bernstein_at(act_c[q], s, work)
-                        if sigma_s == 0.0:
+            for sub in range(n_sub):
+                u_start = u_end
+                if sub == n_sub - 1:
+                    s_end = 1.0
+                    u_end = tau_iv
+                else:
+                    s_end = (t_c + h_l * math.tan(th_a + (sub + 1) * d_th) - ta) / w
+                    u_end = w * bernstein_cumulative(S, s_end, cum)
+                sub_tau = u_end - u_start
+                if sub_tau <= 0.0:
+                    continue
+                # in optical depth u: T sigma_s dt = e^-u (sigma_s / sigma_t) du, so the nodes need not
+                # resolve the exponential; t(u) is found on the exact antiderivative
+                n_steps = max(1, int(math.ceil(max(sub_tau / max_tau, (s_end * w - s_prev * w) / max_length))))
+                h = sub_tau / n_steps
+                for st in range(n_steps):
+                    for g in range(gl_x.shape[0]):
+                        u = u_start + (st + gl_x[g]) * h
+                        s = _depth_to_s(S, w, u, s_prev, cum, work)
+                        s_prev = s
+                        sigma_t = _bernstein_at(S, s, work)
+                        if sigma_t <= 0.0:
                             continue
-                        for li in range(n_lights):
-                            ph = phase(med_phase[m, 0], med_phase[m, 1], med_phase[m, 2], med_phase[m, 3],
-                                       light_buf[li, 0])
-                            for c in range(3):
-                                out[c] += weight * sigma_s * ph * light_buf[li, 1 + c]
+                        t = ta + s * w
                         for c in range(3):
-                            out[c] += weight * sigma_s * ambient[c]
+                            pos[c] = o[c] + t * d[c]
+                        scratch = _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack,
+                                                 l_dir, light_buf)
+                        weight = gl_w[g] * h * math.exp(-(tau_acc + u)) / sigma_t
+                        for q in range(n_act):
+                            m = p_m[act[q]]
+                            sigma_s = med_albedo[m] * _bernstein_at(act_c[q], s, work)
+                            if sigma_s == 0.0:
+                                continue
+                            for li in range(n_lights):
+                                ph = phase(med_phase[m, 0], med_phase[m, 1], med_phase[m, 2], med_phase[m, 3],
+                                           light_buf[li, 0])
+                                for c in range(3):
+                                    out[c] += weight * sigma_s * ph * light_buf[li, 1 + c]
+                            for c in range(3):
+                                out[c] += weight * sigma_s * ambient[c]
         tau_acc += tau_iv
         if tau_acc > tau_stop:
             shading = False  # the rest of the ray is seen through less than `cutoff`
