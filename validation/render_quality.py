@@ -1,0 +1,121 @@
+"""Run time against error of the renderer's quality settings.
+
+For each scene, renders every quality preset (draft, default, fine) and the tightest setting
+(``reference``), and prints per setting the wall time and the relative RMSE against the reference:
+
+    rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / sqrt(mean of L_ref^2)
+
+It also checks that the reference itself has converged, by rendering a smaller image at a setting
+tighter still (``--check-size``). Writes validation/results/render_quality.csv and a Pareto plot
+render_quality.png (time against error).
+
+    python -m validation.render_quality [--size 512] [--scenes scenes/cumulus.yaml ...] [--quick]
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numpy as np
+
+import cloudmeta as cm
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = Path(__file__).resolve().parent / "results"
+PRESETS = ("draft", "default", "fine")
+#: tighter than ``reference``: used only to show that the reference has converged
+ULTRA = dict(quality="reference", nodes=8, max_tau=0.02, cutoff=0.0)
+
+
+def rel_rmse(img, ref):
+    a = np.asarray(img, np.float64)[..., :3]
+    b = np.asarray(ref, np.float64)[..., :3]
+    return float(np.sqrt(np.mean((a - b) ** 2)) / np.sqrt(np.mean(b ** 2)))
+
+
+def with_quality(scene, **settings):
+    return replace(scene, render=replace(scene.render, **settings))
+
+
+def timed_render(scene):
+    start = time.perf_counter()
+    img = cm.render(scene, progress=False)
+    return img, time.perf_counter() - start
+
+
+def run_scene(path, size, check_size):
+    scene = cm.load_scene(path, width=size, height=size)
+    cm.render(cm.load_scene(path, width=8, height=8), progress=False)  # compile (or load the cache) first
+    ref, t_ref = timed_render(with_quality(scene, quality="reference"))
+    rows = []
+    for preset in PRESETS:
+        img, t = timed_render(with_quality(scene, quality=preset))
+        rows.append(dict(scene=Path(path).stem, size=size, setting=preset, seconds=t, rel_rmse=rel_rmse(img, ref),
+                         max_abs=float(np.abs(img[..., :3] - ref[..., :3]).max())))
+    rows.append(dict(scene=Path(path).stem, size=size, setting="reference", seconds=t_ref, rel_rmse=0.0, max_abs=0.0))
+    small = cm.load_scene(path, width=check_size, height=check_size)
+    ref_small, _ = timed_render(with_quality(small, quality="reference"))
+    ultra, _ = timed_render(with_quality(small, **ULTRA))
+    rows.append(dict(scene=Path(path).stem, size=check_size, setting="reference vs tighter", seconds=float("nan"),
+                     rel_rmse=rel_rmse(ref_small, ultra), max_abs=float(np.abs(ref_small - ultra)[..., :3].max())))
+    return rows
+
+
+def plot(rows, out):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        pts = [r for r in rows if r["scene"] == scene and r["setting"] in PRESETS]
+        ax.plot([r["seconds"] for r in pts], [r["rel_rmse"] for r in pts], "o-", label=scene)
+        for r in pts:
+            ax.annotate(r["setting"], (r["seconds"], r["rel_rmse"]), textcoords="offset points", xytext=(4, 4),
+                        fontsize=8)
+    ax.axhline(1e-3, color="grey", ls="--", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall time [s] (2 cores)")
+    ax.set_ylabel("relative RMSE vs reference")
+    ax.set_title("cloudmeta: time against error")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+
+
+def main(argv=None, quick=False):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--check-size", type=int, default=96)
+    ap.add_argument("--scenes", nargs="+", default=[str(ROOT / "scenes" / "cumulus.yaml")])
+    ap.add_argument("--quick", action="store_true", help="small images, for a test")
+    args = ap.parse_args(argv)
+    quick = quick or args.quick
+    size, check = (48, 24) if quick else (args.size, args.check_size)
+    rows = [r for s in args.scenes for r in run_scene(s, size, check)]
+    print(f"{'scene':18s} {'size':>5s} {'setting':22s} {'time [s]':>9s} {'rel RMSE':>10s} {'max abs':>10s}")
+    for r in rows:
+        print(f"{r['scene']:18s} {r['size']:5d} {r['setting']:22s} {r['seconds']:9.2f} {r['rel_rmse']:10.2e} "
+              f"{r['max_abs']:10.2e}")
+    default_ok = all(r["rel_rmse"] < 1e-3 for r in rows if r["setting"] == "default")
+    print(f"default setting below 1e-3 relative RMSE on every scene: {'PASS' if default_ok else 'FAIL'}")
+    if not quick:
+        RESULTS.mkdir(exist_ok=True)
+        with open(RESULTS / "render_quality.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+        plot(rows, RESULTS / "render_quality.png")
+        print(f"wrote {RESULTS / 'render_quality.csv'} and {RESULTS / 'render_quality.png'}")
+    return dict(rows=rows, passed=default_ok)
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
