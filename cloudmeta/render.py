@@ -6,9 +6,9 @@ keys overrides that preset's value:
 =============== ======= ======= ======= ========== ====================================================
 key             draft   default fine    reference  meaning
 =============== ======= ======= ======= ========== ====================================================
-nodes           2       3       4       6          Gauss-Legendre nodes per quadrature step
-max_tau         1.0     0.5     0.25    0.05       largest optical depth of one step
-max_length      1/8     1/16    1/32    1/128      longest step, as a fraction of the scene's diagonal
+nodes           2       4       6       8          Gauss-Legendre nodes per quadrature step
+max_tau         2.0     1.0     0.5     0.1        thickest step, in optical depth
+max_length      1/16    1/32    1/64    1/128      longest step, as a fraction of the scene's diagonal
                                                    (an explicit ``max_length`` is in scene units)
 max_angle       0.4     0.2     0.1     0.025      widest angle (radians) of a step seen from a point light
 cutoff          1e-2    1e-3    1e-4    0          stop shading once the view transmittance is below
@@ -30,15 +30,15 @@ import numpy as np
 from .engine import DENSITY_MODES, n_chunks
 from .errors import CloudmetaError
 from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
-from .kernels.radiance import DIRECTIONAL, POINT, render_rows
+from .kernels.radiance import DIRECTIONAL, MAX_NODES, POINT, render_rows
 from .kernels.shadowmap import trace_texels
 from .scene import DirectionalLight, RenderSettings, Scene
 
 PRESETS = {
-    "draft": dict(nodes=2, max_tau=1.0, max_length=1 / 8, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
-    "default": dict(nodes=3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-3, root_tolerance=1e-9),
-    "fine": dict(nodes=4, max_tau=0.25, max_length=1 / 32, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
-    "reference": dict(nodes=6, max_tau=0.05, max_length=1 / 128, max_angle=0.025, cutoff=0.0,
+    "draft": dict(nodes=2, max_tau=2.0, max_length=1 / 16, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
+    "default": dict(nodes=4, max_tau=1.0, max_length=1 / 32, max_angle=0.2, cutoff=1e-3, root_tolerance=1e-9),
+    "fine": dict(nodes=6, max_tau=0.5, max_length=1 / 64, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
+    "reference": dict(nodes=8, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0,
                       root_tolerance=1e-9),
 }
 PHASES = {"isotropic": ISOTROPIC, "hg": HG, "double_hg": DOUBLE_HG, "rayleigh": RAYLEIGH}
@@ -198,6 +198,24 @@ def gauss_legendre(nodes):
     return 0.5 * (x + 1.0), 0.5 * w
 
 
+#: points of the fine rule that integrates e^-(h y) L_k(y) for the product weights (exact to rounding
+#: for steps of optical depth up to ~20)
+FINE_POINTS = 24
+
+
+def product_rule(nodes):
+    """Gauss-Legendre nodes on [0, 1], and their Lagrange basis sampled at a fine Gauss rule: what the
+    kernel needs to integrate e^-u times the interpolant of the light exactly (radiance._exp_weights)."""
+    x, _ = gauss_legendre(nodes)
+    y, w = gauss_legendre(FINE_POINTS)
+    lagrange = np.ones((nodes, FINE_POINTS))
+    for k in range(nodes):
+        for j in range(nodes):
+            if j != k:
+                lagrange[k] *= (y - x[j]) / (x[k] - x[j])
+    return x, lagrange, y, w
+
+
 def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
     """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha."""
     if scene.surfaces:
@@ -212,7 +230,7 @@ def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
         maps = build_shadow_maps(scene.lights, med, mlo, mhi, scene.render.shadow_map or SHADOW_MAP_RESOLUTION,
                                  q.tol_t)
     lights = pack_lights(scene.lights, maps)
-    quad = (*gauss_legendre(q.nodes), q.max_tau, q.max_length, q.max_angle, q.cutoff, q.tol_t)
+    quad = (*product_rule(q.nodes), q.max_tau, q.max_length, q.max_angle, q.cutoff, q.tol_t)
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     fwd, right, up = camera_basis(scene.camera, w, h)
     # fresh writable copies: numba types read-only arrays apart, and a second type means a second compile

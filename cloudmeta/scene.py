@@ -490,7 +490,7 @@ def _render(top):
                               f"{DEFAULT_COLOURSPACE!r} or 'ACEScg', got {colourspace!r}")
     return RenderSettings(
         quality=n.choice("quality", QUALITIES, "default"),
-        nodes=n.integer("nodes", None, **_POSITIVE_INT),
+        nodes=n.integer("nodes", None, check=lambda v: 1 <= v <= 16, expect="an integer from 1 to 16"),
         max_tau=n.number("max_tau", None, **_POSITIVE),
         max_length=n.number("max_length", None, **_POSITIVE),
         max_angle=n.number("max_angle", None, check=lambda v: 0 < v <= 1.6, expect="an angle in (0, 1.6] radians"),

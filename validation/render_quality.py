@@ -31,7 +31,9 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results"
 PRESETS = ("draft", "default", "fine")
 #: tighter than ``reference``: used only to show that the reference has converged
-ULTRA = dict(quality="reference", nodes=8, max_tau=0.02, cutoff=0.0)
+ULTRA = dict(quality="reference", nodes=12, max_tau=0.05, cutoff=0.0)
+#: ULTRA's longest step, as a fraction of the scene's diagonal (reference: 1/128)
+ULTRA_LENGTH = 1 / 512
 
 
 def rel_rmse(img, ref):
@@ -62,7 +64,8 @@ def run_scene(path, size, check_size):
     rows.append(dict(scene=Path(path).stem, size=size, setting="reference", seconds=t_ref, rel_rmse=0.0, max_abs=0.0))
     small = cm.load_scene(path, width=check_size, height=check_size)
     ref_small, _ = timed_render(with_quality(small, quality="reference"))
-    ultra, _ = timed_render(with_quality(small, **ULTRA))
+    lo, hi = small.bbox()
+    ultra, _ = timed_render(with_quality(small, **ULTRA, max_length=ULTRA_LENGTH * float(np.linalg.norm(hi - lo))))
     rows.append(dict(scene=Path(path).stem, size=check_size, setting="reference vs tighter", seconds=float("nan"),
                      rel_rmse=rel_rmse(ref_small, ultra), max_abs=float(np.abs(ref_small - ultra)[..., :3].max())))
     return rows

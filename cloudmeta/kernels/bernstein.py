@@ -12,19 +12,6 @@ DEGREE = 6
 NCOEF = DEGREE + 1
 
 
-@njit(**NJIT)
-def bernstein_eval(c, s):
-    """B(s) by de Casteljau's algorithm (stable: only convex combinations for s in [0, 1])."""
-    n = c.shape[0]
-    w = np.empty(n)  # tiny, used only outside hot loops; hot loops use subdivide into scratch
-    for i in range(n):
-        w[i] = c[i]
-    for r in range(1, n):
-        for i in range(n - r):
-            w[i] = (1.0 - s) * w[i] + s * w[i + 1]
-    return w[0]
-
-
 @njit(**NJIT_INLINE)
 def _casteljau_rows(c0, c1, c2, c3, c4, c5, c6, t):
     """All rows of de Casteljau's triangle at t for a degree-6 curve, on scalars: the lerps of one row
@@ -112,20 +99,29 @@ def bernstein_integral(c, s0, s1, work):
     return (s1 - s0) * bernstein_mean(work[:c.shape[0]])
 
 
-@njit(**NJIT)
-def bernstein_cumulative(c, s, work):
-    """Integral over [0, s]: the antiderivative is a degree n+1 curve with control values
-    e_k = sum_{j<k} c_j / (n+1); evaluated by de Casteljau in ``work`` (length n+2)."""
-    n1 = c.shape[0]
-    acc = 0.0
-    work[0] = 0.0
-    for k in range(1, n1 + 1):
-        acc += c[k - 1]
-        work[k] = acc / n1
-    for r in range(1, n1 + 1):
-        for i in range(n1 + 1 - r):
-            work[i] = (1.0 - s) * work[i] + s * work[i + 1]
-    return work[0]
+@njit(**NJIT_INLINE)
+def bernstein_eval(c, s):
+    """B(s) of a degree-6 curve: the apex of one de Casteljau triangle (on scalars)."""
+    left, _ = _casteljau_rows(c[0], c[1], c[2], c[3], c[4], c[5], c[6], s)
+    return left[6]
+
+
+@njit(**NJIT_INLINE)
+def bernstein_cumulative(c, s):
+    """Integral over [0, s] of a degree-6 curve: the antiderivative is the degree-7 curve with control
+    values e_k = sum_{j<k} c_j / 7, evaluated here by de Casteljau on scalars."""
+    e1 = c[0] / 7.0
+    e2 = e1 + c[1] / 7.0
+    e3 = e2 + c[2] / 7.0
+    e4 = e3 + c[3] / 7.0
+    e5 = e4 + c[4] / 7.0
+    e6 = e5 + c[5] / 7.0
+    e7 = e6 + c[6] / 7.0
+    # one de Casteljau row takes degree 7 to degree 6; the rest is the degree-6 triangle
+    u = 1.0 - s
+    left, _ = _casteljau_rows(s * e1, u * e1 + s * e2, u * e2 + s * e3, u * e3 + s * e4, u * e4 + s * e5,
+                              u * e5 + s * e6, u * e6 + s * e7, s)
+    return left[6]
 
 
 @njit(**NJIT)

@@ -14,12 +14,15 @@ from .sweep import DENSITY_EXCESS, DENSITY_UNIFORM, pieces_optical_depth, trace_
 
 
 @njit(**NJIT)
-def alloc_ray_pieces(capacity):
-    """Pieces of all media on one ray: t0, t1, sigma_t control values, medium; plus the interval sweep's
-    breakpoints, start order, active list and the active pieces' polynomials on the current interval."""
+def alloc_ray_pieces(capacity, n_media):
+    """Pieces of all media on one ray: t0, t1, sigma_t control values, medium; the interval sweep's
+    breakpoints, start order and active list; and the ray's elementary intervals (between consecutive
+    piece ends): t0, t1, optical depth from the ray's start to t0, sigma_t of all media, and of each."""
     p = max(capacity, 1)
     return (np.empty(p), np.empty(p), np.empty((p, NCOEF)), np.empty(p, np.int64),
-            np.empty(2 * p), np.empty(p, np.int64), np.empty(p, np.int64), np.empty((p, NCOEF)))
+            np.empty(2 * p), np.empty(p, np.int64), np.empty(p, np.int64),
+            np.empty(2 * p), np.empty(2 * p), np.empty(2 * p + 1), np.empty((2 * p, NCOEF)),
+            np.empty((2 * p, max(n_media, 1), NCOEF)))
 
 
 @njit(**NJIT)
@@ -44,7 +47,7 @@ def collect_media(o, d, tmax, med, tol_t, scratch, rp, cand, stack):
     for m in range(med[3].shape[0] - 1):
         scratch, n_out = medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack)
         if n + n_out > rp[0].shape[0]:
-            bigger = alloc_ray_pieces(2 * (n + n_out))
+            bigger = alloc_ray_pieces(2 * (n + n_out), med[3].shape[0] - 1)
             bigger[0][:n] = rp[0][:n]
             bigger[1][:n] = rp[1][:n]
             bigger[2][:n] = rp[2][:n]

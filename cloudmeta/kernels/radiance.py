@@ -6,7 +6,8 @@ and their polynomials are added, exactly as the engine composites balls. On each
 
 - the view optical depth tau(0, t) is exact at any t (the antiderivative of a Bernstein polynomial);
 - the in-scattering integral is taken in optical depth u, where T sigma_s dt = e^-u (sigma_s/sigma_t) du:
-  a Gauss-Legendre rule on steps no thicker than ``max_tau`` and no longer than ``max_length``, with an
+  Gauss-Legendre nodes with product-integration weights (exact for e^-u times a polynomial, see
+  _exp_weights) on steps no thicker than ``max_tau`` and no longer than ``max_length``, with an
   exact shadow ray from every node to every light; near point lights the interval is first cut at equal
   angles (at most ``max_angle``) seen from the light, which tames their 1/r^2.
 
@@ -16,7 +17,8 @@ Three tuples carry the scene (see cloudmeta.render.PackedMedia.args for the orde
   lights = (kind, vec, rgb, map_of, <one shadowmap's arrays: geo, res, base, start, t0, t1, c, cum,
             reach>): kind 0 directional (vec towards the light, rgb irradiance), kind 1 point (vec its
             position, rgb intensity); map_of[l] is the light's shadow map, or -1 for exact shadow rays
-  quad   = (gl_x, gl_w, max_tau, max_length, max_angle, cutoff, tol_t)
+  quad   = (gl_x, lagrange, fine_y, fine_w, max_tau, max_length, max_angle, cutoff, tol_t): Gauss-Legendre
+           nodes on [0, 1], their Lagrange basis at a fine Gauss rule (fine_y, fine_w), and the settings
 """
 import math
 
@@ -24,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import NJIT, NJIT_PARALLEL
-from .bernstein import NCOEF, bernstein_cumulative, bernstein_mean, subdivide
+from .bernstein import NCOEF, bernstein_cumulative, bernstein_eval, bernstein_mean, subdivide
 from .optics import phase
 from .bvh import STACK
 from .media import alloc_ray_pieces, collect_media, shadow_transmittance
@@ -33,41 +35,50 @@ from .sweep import alloc_scratch, heap_argsort, heap_sort
 
 DIRECTIONAL = 0
 POINT = 1
+#: most Gauss nodes per step (the work rows are sized by it)
+MAX_NODES = 16
 
 
 @njit(**NJIT)
-def _bernstein_at(c, s, work):
-    for i in range(NCOEF):
-        work[i] = c[i]
-    for r in range(1, NCOEF):
-        for i in range(NCOEF - r):
-            work[i] = (1.0 - s) * work[i] + s * work[i + 1]
-    return work[0]
-
-
-@njit(**NJIT)
-def _depth_to_s(S, w, u, s_lo, cum, work):
-    """s in [s_lo, 1] where the optical depth w * int_0^s S reaches u: Newton on the exact antiderivative,
-    kept inside a shrinking bracket (the depth is monotone, S >= 0)."""
-    lo = s_lo
+def _depth_to_s(S, w, u, s0, u0):
+    """s in [s0, 1] where the optical depth w * int_0^s S reaches u, given that it is u0 at s0 (the
+    previous node): Newton on the exact antiderivative from the previous node, kept in a shrinking
+    bracket (the depth is monotone, S >= 0)."""
+    lo = s0
     hi = 1.0
-    s = s_lo
+    slope = w * bernstein_eval(S, s0)
+    s = s0 + (u - u0) / slope if slope > 0.0 else 0.5 * (s0 + 1.0)
+    if not (lo < s < hi):
+        s = 0.5 * (lo + hi)
     for _ in range(60):
-        f = w * bernstein_cumulative(S, s, cum) - u
+        f = w * bernstein_cumulative(S, s) - u
         if f < 0.0:
             lo = s
         else:
             hi = s
-        slope = w * _bernstein_at(S, s, work)
-        step_ok = slope > 0.0
-        if step_ok:
-            sn = s - f / slope
-            step_ok = lo < sn < hi
-        sn = sn if step_ok else 0.5 * (lo + hi)
+        slope = w * bernstein_eval(S, s)
+        sn = s - f / slope if slope > 0.0 else 0.5 * (lo + hi)
+        if not (lo < sn < hi):
+            sn = 0.5 * (lo + hi)
         if abs(sn - s) <= 1e-14 or hi - lo <= 1e-14:
             return sn
         s = sn
     return s
+
+
+@njit(**NJIT)
+def _exp_weights(h, lagrange, fine_y, fine_w, out):
+    """Product-integration weights of a step of optical depth h: out[k] = int_0^h e^-x L_k(x / h) dx, with
+    L_k the Lagrange basis of the Gauss nodes. The rule is exact for e^-x times any polynomial of degree
+    < nodes, so the steps need resolve only how the light J varies, not the exponential."""
+    for k in range(lagrange.shape[0]):
+        out[k] = 0.0
+    for q in range(fine_y.shape[0]):
+        e = fine_w[q] * math.exp(-h * fine_y[q])
+        for k in range(lagrange.shape[0]):
+            out[k] += e * lagrange[k, q]
+    for k in range(lagrange.shape[0]):
+        out[k] *= h
 
 
 @njit(**NJIT)
@@ -108,7 +119,6 @@ def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l
     light_kind, light_vec, light_rgb, map_of = lights[0], lights[1], lights[2], lights[3]
     geo, res, base, start, t0, t1, c_map, cum, reach = (lights[4], lights[5], lights[6], lights[7], lights[8],
                                                         lights[9], lights[10], lights[11], lights[12])
-    work = light_buf[-1]
     for li in range(light_kind.shape[0]):
         if light_kind[li] == DIRECTIONAL:
             for c in range(3):
@@ -126,8 +136,7 @@ def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l
         light_buf[li, 0] = l_dir[0] * d[0] + l_dir[1] * d[1] + l_dir[2] * d[2]
         mi = map_of[li]
         if mi >= 0:
-            t_l = math.exp(-map_optical_depth(pos, geo[mi], res[mi], base[mi], start, t0, t1, c_map, cum, reach,
-                                              work))
+            t_l = math.exp(-map_optical_depth(pos, geo[mi], res[mi], base[mi], start, t0, t1, c_map, cum, reach))
         else:
             scratch, t_l = shadow_transmittance(pos, l_dir, l_max, med, tol_t, tau_stop, scratch, cand, stack)
         for c in range(3):
@@ -136,33 +145,11 @@ def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l
 
 
 @njit(**NJIT)
-def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand, stack, light_buf, out):
-    """out[:3] = radiance of the camera ray o + t d, out[3] = its transmittance T(0, inf).
-
-    Returns (scratch, rp): the work arrays, grown if this ray needed more room.
-    """
-    med_albedo, med_phase = med[8], med[9]
-    light_kind = lights[0]
-    gl_x, gl_w, max_tau, max_length, max_angle, cutoff, tol_t = quad
-    scratch, rp, n = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
-    out[0] = 0.0
-    out[1] = 0.0
-    out[2] = 0.0
-    if n == 0:
-        out[0] = background[0]
-        out[1] = background[1]
-        out[2] = background[2]
-        out[3] = 1.0
-        return scratch, rp
-    p_t0, p_t1, p_c, p_m, bp, order, act, act_c = rp
-    work = scratch[17][0]
-    cum = light_buf[-1]          # the last rows of light_buf are this ray's small work vectors
-    S = light_buf[-2, :NCOEF]
-    pos = light_buf[-3, :3]
-    l_dir = light_buf[-3, 3:6]
-    n_lights = light_kind.shape[0]
-    has_ambient = ambient[0] > 0.0 or ambient[1] > 0.0 or ambient[2] > 0.0
-    tau_stop = -math.log(cutoff) if cutoff > 0.0 else np.inf
+def elementary_intervals(n, rp):
+    """Cut the ray at every piece end; per interval, sigma_t of each medium and of all, and the optical
+    depth from the ray's start. Returns the number of intervals."""
+    p_t0, p_t1, p_c, p_m, bp, order, act = rp[0], rp[1], rp[2], rp[3], rp[4], rp[5], rp[6]
+    el_t0, el_t1, el_u0, el_S, el_sig = rp[7], rp[8], rp[9], rp[10], rp[11]
     for k in range(n):
         bp[2 * k] = p_t0[k]
         bp[2 * k + 1] = p_t1[k]
@@ -170,8 +157,8 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
     heap_argsort(p_t0, order, n)
     n_act = 0
     i_s = 0
-    tau_acc = 0.0
-    shading = n_lights > 0 or has_ambient
+    n_el = 0
+    el_u0[0] = 0.0
     for k in range(2 * n - 1):
         ta = bp[k]
         tb = bp[k + 1]
@@ -189,58 +176,128 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
             i_s += 1
         if n_act == 0:
             continue
-        # sigma_t of every active piece on [ta, tb], and their sum
-        S[:] = 0.0
-        scatters = False
+        el_S[n_el, :] = 0.0
+        el_sig[n_el, :, :] = 0.0
         for q in range(n_act):
             i = act[q]
             span = p_t1[i] - p_t0[i]
             s0 = min(max((ta - p_t0[i]) / span, 0.0), 1.0)
             s1 = min(max((tb - p_t0[i]) / span, 0.0), 1.0)
-            subdivide(p_c[i], s0, s1, act_c[q])
+            sig = el_sig[n_el, p_m[i]]
+            subdivide(p_c[i], s0, s1, sig)  # pieces of one medium never overlap
             for c in range(NCOEF):
-                S[c] += act_c[q, c]
-            scatters = scatters or med_albedo[p_m[i]] > 0.0
-        w = tb - ta
-        tau_iv = w * bernstein_mean(S)
-        if shading and scatters and tau_iv > 0.0:
-            # near a point light E ~ 1/r^2 peaks: cut the interval at equal angles seen from the light
-            # whose angle is widest (t = t_c + h tan(theta) makes dt / r^2 = d(theta) / h smooth)
+                el_S[n_el, c] += sig[c]
+        el_t0[n_el] = ta
+        el_t1[n_el] = tb
+        el_u0[n_el + 1] = el_u0[n_el] + (tb - ta) * bernstein_mean(el_S[n_el])
+        n_el += 1
+    return n_el
+
+
+@njit(**NJIT)
+def _depth_at(t, k, n_el, rp):
+    """(optical depth at t, the interval holding t), searching forward from interval k."""
+    el_t0, el_t1, el_u0, el_S = rp[7], rp[8], rp[9], rp[10]
+    while k < n_el - 1 and el_t1[k] <= t:
+        k += 1
+    w = el_t1[k] - el_t0[k]
+    s = min(max((t - el_t0[k]) / w, 0.0), 1.0)
+    return el_u0[k] + w * bernstein_cumulative(el_S[k], s), k
+
+
+@njit(**NJIT)
+def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand, stack, light_buf, out):
+    """out[:3] = radiance of the camera ray o + t d, out[3] = its transmittance T(0, inf).
+
+    The ray's sigma_t is tabulated on elementary intervals (exact optical depth at any t); the quadrature
+    then runs over each inside segment (a run of adjacent intervals) as a whole, so that chord ends,
+    which the light does not see, cost no nodes. Returns (scratch, rp), grown if this ray needed more room.
+    """
+    med_albedo, med_phase = med[8], med[9]
+    light_kind = lights[0]
+    gl_x, lagrange, fine_y, fine_w, max_tau, max_length, max_angle, cutoff, tol_t = quad
+    scratch, rp, n = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
+    for c in range(3):
+        out[c] = 0.0
+    if n == 0:
+        for c in range(3):
+            out[c] = background[c]
+        out[3] = 1.0
+        return scratch, rp
+    n_el = elementary_intervals(n, rp)
+    el_t0, el_t1, el_u0, el_S, el_sig = rp[7], rp[8], rp[9], rp[10], rp[11]
+    u_total = el_u0[n_el]
+    n_lights = light_kind.shape[0]
+    n_media = med_albedo.shape[0]
+    node_w = light_buf[-4]       # the last rows of light_buf are this ray's small work vectors
+    pos = light_buf[-3, :3]
+    l_dir = light_buf[-3, 3:6]
+    has_ambient = ambient[0] > 0.0 or ambient[1] > 0.0 or ambient[2] > 0.0
+    scatters = False
+    for m in range(n_media):
+        scatters = scatters or med_albedo[m] > 0.0
+    u_stop = -math.log(cutoff) if cutoff > 0.0 else np.inf
+    if (n_lights > 0 or has_ambient) and scatters:
+        k_a = 0
+        while k_a < n_el and el_u0[k_a] < u_stop:
+            # the inside segment: intervals k_a .. k_b - 1, adjacent end to start
+            k_b = k_a + 1
+            while k_b < n_el and el_t0[k_b] == el_t1[k_b - 1]:
+                k_b += 1
+            ta = el_t0[k_a]
+            tb = el_t1[k_b - 1]
+            # near a point light E ~ 1/r^2 peaks: cut at equal angles seen from the light that sees the
+            # segment under the widest angle (t = t_c + h tan(theta) makes dt / r^2 = d(theta) / h)
             n_sub, t_c, h_l, th_a, d_th = _angular_cuts(o, d, ta, tb, light_kind, lights[1], max_angle, tol_t)
-            u_end = 0.0
+            k = k_a
+            u_end = el_u0[k_a]
+            t_end = ta
             s_prev = 0.0
+            u_prev = el_u0[k_a]
             for sub in range(n_sub):
                 u_start = u_end
+                t_start = t_end
                 if sub == n_sub - 1:
-                    s_end = 1.0
-                    u_end = tau_iv
+                    t_end = tb
+                    u_end = el_u0[k_b]
                 else:
-                    s_end = (t_c + h_l * math.tan(th_a + (sub + 1) * d_th) - ta) / w
-                    u_end = w * bernstein_cumulative(S, s_end, cum)
-                sub_tau = u_end - u_start
-                if sub_tau <= 0.0:
+                    t_end = t_c + h_l * math.tan(th_a + (sub + 1) * d_th)
+                    u_end, _ = _depth_at(t_end, k, k_b, rp)
+                sub_u = u_end - u_start
+                if sub_u <= 0.0:
                     continue
-                # in optical depth u: T sigma_s dt = e^-u (sigma_s / sigma_t) du, so the nodes need not
-                # resolve the exponential; t(u) is found on the exact antiderivative
-                n_steps = max(1, int(math.ceil(max(sub_tau / max_tau, (s_end * w - s_prev * w) / max_length))))
-                h = sub_tau / n_steps
+                # in optical depth u: T sigma_s dt = e^-u (sigma_s / sigma_t) du, with weights exact for
+                # e^-u times a polynomial: the nodes follow only how the light varies
+                n_steps = max(1, int(math.ceil(max(sub_u / max_tau, (t_end - t_start) / max_length))))
+                h = sub_u / n_steps
+                _exp_weights(h, lagrange, fine_y, fine_w, node_w)
                 for st in range(n_steps):
+                    u_step = u_start + st * h
+                    if u_step >= u_stop:
+                        break  # the rest is seen through less than `cutoff`
                     for g in range(gl_x.shape[0]):
-                        u = u_start + (st + gl_x[g]) * h
-                        s = _depth_to_s(S, w, u, s_prev, cum, work)
+                        u = u_step + gl_x[g] * h
+                        while k < k_b - 1 and el_u0[k + 1] <= u:
+                            k += 1
+                            s_prev = 0.0
+                            u_prev = el_u0[k]
+                        w = el_t1[k] - el_t0[k]
+                        s = _depth_to_s(el_S[k], w, u - el_u0[k], s_prev, u_prev - el_u0[k])
                         s_prev = s
-                        sigma_t = _bernstein_at(S, s, work)
+                        u_prev = u
+                        sigma_t = bernstein_eval(el_S[k], s)
                         if sigma_t <= 0.0:
                             continue
-                        t = ta + s * w
+                        t = el_t0[k] + s * w
                         for c in range(3):
                             pos[c] = o[c] + t * d[c]
-                        scratch = _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack,
+                        scratch = _light_at_node(pos, d, med, lights, tol_t, u_stop, scratch, cand, stack,
                                                  l_dir, light_buf)
-                        weight = gl_w[g] * h * math.exp(-(tau_acc + u)) / sigma_t
-                        for q in range(n_act):
-                            m = p_m[act[q]]
-                            sigma_s = med_albedo[m] * _bernstein_at(act_c[q], s, work)
+                        weight = node_w[g] * math.exp(-u_step) / sigma_t
+                        for m in range(n_media):
+                            if med_albedo[m] == 0.0:
+                                continue
+                            sigma_s = med_albedo[m] * bernstein_eval(el_sig[k, m], s)
                             if sigma_s == 0.0:
                                 continue
                             for li in range(n_lights):
@@ -250,13 +307,11 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
                                     out[c] += weight * sigma_s * ph * light_buf[li, 1 + c]
                             for c in range(3):
                                 out[c] += weight * sigma_s * ambient[c]
-        tau_acc += tau_iv
-        if tau_acc > tau_stop:
-            shading = False  # the rest of the ray is seen through less than `cutoff`
-    t_end = math.exp(-tau_acc)
+            k_a = k_b
+    t_view = math.exp(-u_total)
     for c in range(3):
-        out[c] += background[c] * t_end
-    out[3] = t_end
+        out[c] += background[c] * t_view
+    out[3] = t_view
     return scratch, rp
 
 
@@ -279,7 +334,7 @@ def jitter(seed, pixel, sample, dim):
 def alloc_work(n_balls, n_lights):
     """Per-chunk work arrays of the image loop: candidate list, BVH stack, light buffer."""
     return (np.empty(max(n_balls, 1), np.int64), np.empty(2 * STACK, np.int64),
-            np.empty((n_lights + 3, NCOEF + 1)))
+            np.empty((n_lights + 4, max(NCOEF + 1, MAX_NODES))))
 
 
 @njit(**NJIT_PARALLEL)
@@ -294,7 +349,7 @@ def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_righ
     strata = int(math.ceil(math.sqrt(spp)))
     for chunk in prange(n_chunks):
         scratch = alloc_scratch(64)
-        rp = alloc_ray_pieces(64)
+        rp = alloc_ray_pieces(64, med[3].shape[0] - 1)
         cand, stack, light_buf = alloc_work(med[0].shape[0], lights[0].shape[0])
         px_out = np.empty(4)
         d = np.empty(3)

@@ -33,7 +33,7 @@ def trace_texels(geo, res, med, tol_t, n_chunks, fill, counts, start, t0, t1, c,
     n = res * res
     for chunk in prange(n_chunks):
         scratch = alloc_scratch(64)
-        rp = alloc_ray_pieces(64)
+        rp = alloc_ray_pieces(64, med[3].shape[0] - 1)
         cand = np.empty(max(med[0].shape[0], 1), np.int64)
         stack = np.empty(128, np.int64)
         o = np.empty(3)
@@ -63,7 +63,7 @@ def trace_texels(geo, res, med, tol_t, n_chunks, fill, counts, start, t0, t1, c,
 
 
 @njit(**NJIT)
-def texel_optical_depth(s, a, b, t0, t1, c, cum, reach, work):
+def texel_optical_depth(s, a, b, t0, t1, c, cum, reach):
     """Optical depth from the light's side to depth s on the ray whose pieces are [a, b)."""
     if b == a or s <= t0[a]:
         return 0.0
@@ -84,14 +84,14 @@ def texel_optical_depth(s, a, b, t0, t1, c, cum, reach, work):
         if t1[j] > s:
             w = t1[j] - t0[j]
             full = w * bernstein_mean(c[j])
-            part = w * bernstein_cumulative(c[j], (s - t0[j]) / w, work)
+            part = w * bernstein_cumulative(c[j], (s - t0[j]) / w)
             tau -= full - part
         j -= 1
     return tau
 
 
 @njit(**NJIT)
-def map_optical_depth(x, geo, res, base, start, t0, t1, c, cum, reach, work):
+def map_optical_depth(x, geo, res, base, start, t0, t1, c, cum, reach):
     """Optical depth from x towards the light of one map: exact along texel rays, bilinear across them."""
     px = x[0] - geo[0]
     py = x[1] - geo[1]
@@ -111,5 +111,5 @@ def map_optical_depth(x, geo, res, base, start, t0, t1, c, cum, reach, work):
             j = min(max(j0 + dj, 0), res - 1)
             wj = fv if dj == 1 else 1.0 - fv
             k = base + i * res + j
-            tau += wi * wj * texel_optical_depth(s, start[k], start[k + 1], t0, t1, c, cum, reach, work)
+            tau += wi * wj * texel_optical_depth(s, start[k], start[k + 1], t0, t1, c, cum, reach)
     return tau

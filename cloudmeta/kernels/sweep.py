@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from ..config import NJIT
-from .bernstein import NCOEF, bernstein_mean, split, subdivide
+from .bernstein import NCOEF, _casteljau_rows, bernstein_mean, subdivide
 from .clipping import STACK_DEPTH, clip_roots
 from .metaball import chord, control_values
 
@@ -154,7 +154,6 @@ def composite(n_p, tmin, tmax, scratch):
     p_t0, p_t1, p_c = scratch[0], scratch[1], scratch[2]
     bp, order, act = scratch[3], scratch[4], scratch[5]
     iv_t0, iv_t1, iv_c, iv_mag = scratch[6], scratch[7], scratch[8], scratch[9]
-    part = scratch[17][0]
     for k in range(n_p):
         bp[2 * k] = p_t0[k]
         bp[2 * k + 1] = p_t1[k]
@@ -185,23 +184,44 @@ def composite(n_p, tmin, tmax, scratch):
         hi = min(tb, tmax)
         if n_act == 0 or hi <= lo:
             continue
-        c = iv_c[n_iv]
-        c[:] = 0.0
+        # scalars and 2-D indexing only: array views in this loop cost more than the arithmetic
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = 0.0
         mag = 0.0
         for m in range(n_act):
             i = act[m]
-            rest = p_c[i]
-            if lo > p_t0[i]:  # the ray starts inside this chord (tmin), or a clipped gap: drop what lies before
-                split(rest, (lo - p_t0[i]) / (p_t1[i] - p_t0[i]), part, rest)
+            r0, r1, r2, r3, r4, r5, r6 = p_c[i, 0], p_c[i, 1], p_c[i, 2], p_c[i, 3], p_c[i, 4], p_c[i, 5], p_c[i, 6]
+            if lo > p_t0[i]:  # the ray starts inside this chord (tmin): drop what lies before
+                _, (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(r0, r1, r2, r3, r4, r5, r6,
+                                                                  (lo - p_t0[i]) / (p_t1[i] - p_t0[i]))
                 p_t0[i] = lo
             if hi < p_t1[i]:
-                split(rest, (hi - lo) / (p_t1[i] - lo), part, rest)
+                (b0, b1, b2, b3, b4, b5, b6), (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(
+                    r0, r1, r2, r3, r4, r5, r6, (hi - lo) / (p_t1[i] - lo))
                 p_t0[i] = hi
+                p_c[i, 0] = r0
+                p_c[i, 1] = r1
+                p_c[i, 2] = r2
+                p_c[i, 3] = r3
+                p_c[i, 4] = r4
+                p_c[i, 5] = r5
+                p_c[i, 6] = r6
             else:
-                part[:] = rest
-            for q in range(NCOEF):
-                c[q] += part[q]
-                mag += abs(part[q])
+                b0, b1, b2, b3, b4, b5, b6 = r0, r1, r2, r3, r4, r5, r6
+            a0 += b0
+            a1 += b1
+            a2 += b2
+            a3 += b3
+            a4 += b4
+            a5 += b5
+            a6 += b6
+            mag += abs(b0) + abs(b1) + abs(b2) + abs(b3) + abs(b4) + abs(b5) + abs(b6)
+        iv_c[n_iv, 0] = a0
+        iv_c[n_iv, 1] = a1
+        iv_c[n_iv, 2] = a2
+        iv_c[n_iv, 3] = a3
+        iv_c[n_iv, 4] = a4
+        iv_c[n_iv, 5] = a5
+        iv_c[n_iv, 6] = a6
         iv_t0[n_iv] = lo
         iv_t1[n_iv] = hi
         iv_mag[n_iv] = mag / NCOEF
