@@ -235,7 +235,7 @@ BAD_VALUES = [
     ("bad surface colour", ("surfaces", 0, "color"), "pink", "surfaces[0].color", "[r, g, b]"),
     ("unknown colourspace", ("render", "colourspace"), "Rec. 9999", "render.colourspace", "ACEScg"),
     ("render quality", ("render", "quality"), "best", "render.quality", "reference"),
-    ("render nodes 0", ("render", "nodes"), 0, "render.nodes", "an integer >= 1"),
+    ("render nodes 0", ("render", "nodes"), 0, "render.nodes", "an integer from 1 to 16"),
     ("render max_tau 0", ("render", "max_tau"), 0, "render.max_tau", "> 0"),
     ("render max_length", ("render", "max_length"), -1, "render.max_length", "> 0"),
     ("render cutoff 1", ("render", "cutoff"), 1.0, "render.cutoff", "[0, 1)"),
