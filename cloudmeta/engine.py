@@ -74,7 +74,9 @@ def n_chunks(n_items):
     return max(1, min(n_items, 8 * numba.get_num_threads()))
 
 
-def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1.0, cap=16):
+def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1.0, cap=16, lists=True):
+    """tau (N,), and with ``lists`` the per-ray roots and segments (Python lists of arrays: costly for
+    millions of rays, so optical_depth skips them)."""
     blob = check_blob(blob)
     if blob.kernel not in TRACEABLE_KERNELS:
         raise InputError(f"kernel: ray tracing supports {', '.join(TRACEABLE_KERNELS)} so far, got {blob.kernel!r}")
@@ -93,6 +95,8 @@ def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1
     args = (blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.threshold, tol,
             DENSITY_MODES[density], float(scale), blob.bvh)
     trace_rays(o, d, tm, *args, cap, n_chunks(n), tau, n_roots, roots, n_seg, segs)
+    if not lists:
+        return tau, None, None
     roots_list = [roots[i, :n_roots[i]].copy() for i in range(n)]
     segs_list = [segs[i, :n_seg[i]].copy() for i in range(n)]
     over = np.flatnonzero((n_roots > cap) | (n_seg > cap))
@@ -123,7 +127,7 @@ def segments(blob, origins, directions, t_max=np.inf, tolerance=ROOT_TOLERANCE):
 def optical_depth(blob, origins, directions, t_max=np.inf, density="field", scale=1.0,
                   tolerance=ROOT_TOLERANCE):
     """(N,) exact tau over [0, t_max]: sigma_t = scale * rho, rho per ``density`` (MODEL.md §4)."""
-    return _trace(blob, origins, directions, t_max, tolerance, density, scale)[0]
+    return _trace(blob, origins, directions, t_max, tolerance, density, scale, lists=False)[0]
 
 
 def field(blob, points):

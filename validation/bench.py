@@ -1,0 +1,184 @@
+"""Speed benchmark: compile times, BVH build, rays per second, and render time and error.
+
+Prints, in one run:
+- JIT compile time, cold (an empty cache, in a fresh process) and cached (a second fresh process), each
+  as the wall time of a process that imports cloudmeta and renders a 16 x 16 image;
+- BVH build time for 1,000 to 100,000 balls;
+- camera rays and shadow rays per second through the cumulus (the engine alone: chords, compositing,
+  clipping, exact optical depth, on both cores);
+- the 77-ball cumulus at 512 x 512: wall time and relative RMSE against the reference setting, with
+  exact shadows and with shadow maps;
+- scenes of 1,000, 10,000 and 100,000 balls at fixed image size and fixed on-screen coverage: a cloud
+  sheet over a fixed area whose balls shrink as N^(-1/2), so that a ray meets about as many balls at every
+  N and the time measures the cost of culling, not of deeper clouds.
+
+    python -m validation.bench [--size 512] [--scale-size 256] [--quick]
+
+Writes validation/results/bench.csv.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from dataclasses import replace
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numpy as np
+
+import cloudmeta as cm
+from cloudmeta.kernels.bvh import build_bvh
+from validation.render_quality import rel_rmse, with_quality
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = Path(__file__).resolve().parent / "results"
+CUMULUS = ROOT / "scenes" / "cumulus.yaml"
+
+_PROBE = textwrap.dedent(f"""
+    import time; t = time.perf_counter()
+    import cloudmeta as cm
+    cm.render(cm.load_scene({str(CUMULUS)!r}, width=16, height=16), progress=False)
+    print(time.perf_counter() - t)
+""")
+
+
+def process_time(cache_dir):
+    env = dict(os.environ, CLOUDMETA_CACHE_DIR=str(cache_dir))
+    env.pop("NUMBA_CACHE_DIR", None)
+    start = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, check=True)
+    return time.perf_counter() - start, float(out.stdout.strip().splitlines()[-1])
+
+
+def sheet_scene(n, size, path):
+    """A stratocumulus-like sheet of n balls over a fixed 24 x 24 area, radii ~ n^-1/2."""
+    rng = np.random.default_rng(n)
+    side = int(np.ceil(np.sqrt(n)))
+    spacing = 24.0 / side
+    ij = np.stack(np.meshgrid(np.arange(side), np.arange(side), indexing="ij"), -1).reshape(-1, 2)[:n]
+    xy = (ij + 0.5 + rng.uniform(-0.3, 0.3, (n, 2))) * spacing - 12.0
+    z = rng.normal(0, 0.3 * spacing, n)
+    r = spacing * rng.uniform(0.9, 1.3, n)
+    np.savetxt(path.with_suffix(".csv"), np.c_[xy, z, r, np.ones(n)], delimiter=",", fmt="%.6f",
+               header="x,y,z,radius,weight", comments="")
+    path.write_text(textwrap.dedent(f"""
+        image: {{width: {size}, height: {size}}}
+        camera: {{position: [0, -30, 14], look_at: [0, 0, 0], up: [0, 0, 1], fov: 40}}
+        background: [0.2, 0.35, 0.7]
+        lights: [{{type: directional, direction: [0.5, -0.3, 0.8], irradiance: 6.0}}]
+        media:
+          - {{name: sheet, threshold: 0.5, density: {{mode: field, scale: {2.0 / spacing}}}, albedo: 0.9,
+             phase: {{type: hg, g: 0.6}}, balls_file: {path.with_suffix('.csv').name}}}
+        """))
+    return path
+
+
+def timed(scene):
+    start = time.perf_counter()
+    img = cm.render(scene, progress=False)
+    return img, time.perf_counter() - start
+
+
+def rays_per_second(n_rays):
+    scene = cm.load_scene(CUMULUS)
+    blob = scene.media[0].blob
+    rng = np.random.default_rng(0)
+    lo, hi = blob.bbox
+    # camera rays: from the camera through random points of the cloud's box
+    targets = rng.uniform(lo, hi, (n_rays, 3))
+    origins = np.broadcast_to(scene.camera.position, (n_rays, 3))
+    cm.optical_depth(blob, origins[:10], targets[:10] - origins[:10])
+    start = time.perf_counter()
+    cm.optical_depth(blob, origins, targets - origins)
+    camera = n_rays / (time.perf_counter() - start)
+    # shadow rays: from random points inside the cloud towards the sun
+    pts = targets[cm.field(blob, targets) >= blob.threshold]
+    dirs = np.broadcast_to(scene.lights[0].direction, pts.shape)
+    start = time.perf_counter()
+    cm.optical_depth(blob, pts, dirs)
+    shadow = len(pts) / (time.perf_counter() - start)
+    return camera, shadow
+
+
+def main(argv=None, quick=False):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--scale-size", type=int, default=256)
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args(argv)
+    quick = quick or args.quick
+    size, scale_size = (32, 24) if quick else (args.size, args.scale_size)
+    counts = (1000, 10000) if quick else (1000, 10000, 100000)
+    rows = []
+
+    def report(what, value, unit):
+        rows.append(dict(what=what, value=value, unit=unit))
+        print(f"{what:62s} {value:12.4g} {unit}")
+
+    if not quick:
+        with tempfile.TemporaryDirectory() as cache:
+            wall, inner = process_time(cache)
+            report("cold start: fresh process, empty cache, 16x16 render", wall, "s")
+            wall, inner = process_time(cache)
+            report("cached start: fresh process, warm cache, 16x16 render", wall, "s")
+            report("  of which import + load kernels + render", inner, "s")
+    rng = np.random.default_rng(1)
+    for n in (1000, 10000, 100000):
+        c = rng.uniform(-50, 50, (n, 3))
+        r = rng.uniform(0.5, 2, n)
+        b = np.concatenate([c - r[:, None], c + r[:, None]], 1)
+        build_bvh(b[:4], 0)
+        start = time.perf_counter()
+        build_bvh(b, 0)
+        report(f"BVH build, {n} balls", time.perf_counter() - start, "s")
+    camera, shadow = rays_per_second(20000 if quick else 400000)
+    report("camera rays per second (engine: roots + exact tau, 2 threads)", camera, "rays/s")
+    report("shadow rays per second (from inside the cloud, 2 threads)", shadow, "rays/s")
+
+    scene = cm.load_scene(CUMULUS, width=size, height=size)
+    tiny = cm.load_scene(CUMULUS, width=8, height=8)
+    cm.render(tiny, progress=False)  # compile (or load) both shadow modes outside the clock
+    cm.render(with_quality(tiny, shadows="map", shadow_map=8), progress=False)
+    ref, t_ref = timed(with_quality(scene, quality="reference"))
+    report(f"cumulus {size}^2 reference (exact shadows)", t_ref, "s")
+    for label, kw in (("default, exact shadows", dict(quality="default")),
+                      ("draft, exact shadows", dict(quality="draft")),
+                      ("default, shadow map 256", dict(quality="default", shadows="map", shadow_map=256)),
+                      ("default, shadow map 512", dict(quality="default", shadows="map", shadow_map=512)),
+                      ("draft, shadow map 256", dict(quality="draft", shadows="map", shadow_map=256))):
+        img, t = timed(with_quality(scene, **kw))
+        report(f"cumulus {size}^2 {label}: time", t, "s")
+        report(f"cumulus {size}^2 {label}: rel. RMSE vs reference", rel_rmse(img, ref), "")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        times = {}
+        for n in counts:
+            path = sheet_scene(n, scale_size, Path(tmp) / f"sheet_{n}.yaml")
+            s = cm.load_scene(path)
+            cm.render(cm.load_scene(path, width=4, height=4), progress=False)  # BVH and compile outside the clock
+            img, t = timed(s)
+            times[n] = t
+            report(f"sheet of {n} balls, {scale_size}^2 default exact: time", t, "s")
+            report(f"sheet of {n} balls: coverage (alpha > 0.5)", float((img[..., 3] > 0.5).mean()), "")
+        ratio = times[counts[-1]] / times[1000]
+        report(f"time ratio {counts[-1]} / 1000 balls", ratio, "x")
+    if not quick:
+        RESULTS.mkdir(exist_ok=True)
+        with open(RESULTS / "bench.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=["what", "value", "unit"])
+            w.writeheader()
+            w.writerows(rows)
+        print(f"wrote {RESULTS / 'bench.csv'}")
+    return dict(rows=rows, passed=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
