@@ -13,7 +13,7 @@ and their polynomials are added, exactly as the engine composites balls. On each
 
 Three tuples carry the scene (see cloudmeta.render.PackedMedia.args for the order):
   med    = (centers, frames, weights, start, kernel, threshold, mode, scale, albedo, phase,
-            node_box, node_a, node_b, node_n, items, root)       -- every medium's balls and its BVH
+            node_box, node_a, node_b, node_n, items, root, blobbiness) -- every medium's balls, its BVH
   lights = (kind, vec, rgb, map_of, <one shadowmap's arrays: geo, res, base, start, t0, t1, c, cum,
             reach>): kind 0 directional (vec towards the light, rgb irradiance), kind 1 point (vec its
             position, rgb intensity); map_of[l] is the light's shadow map, or -1 for exact shadow rays
@@ -31,7 +31,7 @@ from .optics import phase
 from .bvh import STACK
 from .media import alloc_ray_pieces, collect_media, shadow_transmittance
 from .shadowmap import map_optical_depth
-from .sweep import alloc_scratch, heap_argsort, heap_sort
+from .sweep import advance_active, alloc_scratch, sort_breakpoints
 
 DIRECTIONAL = 0
 POINT = 1
@@ -150,11 +150,7 @@ def elementary_intervals(n, rp):
     depth from the ray's start. Returns the number of intervals."""
     p_t0, p_t1, p_c, p_m, bp, order, act = rp[0], rp[1], rp[2], rp[3], rp[4], rp[5], rp[6]
     el_t0, el_t1, el_u0, el_S, el_sig = rp[7], rp[8], rp[9], rp[10], rp[11]
-    for k in range(n):
-        bp[2 * k] = p_t0[k]
-        bp[2 * k + 1] = p_t1[k]
-    heap_sort(bp, 2 * n)
-    heap_argsort(p_t0, order, n)
+    sort_breakpoints(p_t0, p_t1, n, bp, order)
     n_act = 0
     i_s = 0
     n_el = 0
@@ -164,16 +160,7 @@ def elementary_intervals(n, rp):
         tb = bp[k + 1]
         if tb <= ta:
             continue
-        j = 0
-        for q in range(n_act):
-            if p_t1[act[q]] > ta:
-                act[j] = act[q]
-                j += 1
-        n_act = j
-        while i_s < n and p_t0[order[i_s]] <= ta:
-            act[n_act] = order[i_s]
-            n_act += 1
-            i_s += 1
+        n_act, i_s = advance_active(ta, p_t0, p_t1, order, act, n_act, i_s, n)
         if n_act == 0:
             continue
         el_S[n_el, :] = 0.0

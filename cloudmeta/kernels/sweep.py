@@ -11,7 +11,7 @@ one ray may meet before the caller must allocate a larger scratch.
 import numpy as np
 from numba import njit
 
-from ..config import NJIT
+from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF, _casteljau_rows, bernstein_mean, subdivide
 from .clipping import STACK_DEPTH, clip_roots
 from .metaball import chord, control_values
@@ -142,6 +142,34 @@ def gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, cand, n_ca
     return n
 
 
+@njit(**NJIT_INLINE)
+def sort_breakpoints(p_t0, p_t1, n, bp, order):
+    """bp[:2n]: every piece's two ends, sorted; order[:n]: the pieces by start."""
+    for k in range(n):
+        bp[2 * k] = p_t0[k]
+        bp[2 * k + 1] = p_t1[k]
+    heap_sort(bp, 2 * n)
+    heap_argsort(p_t0, order, n)
+
+
+@njit(**NJIT_INLINE)
+def advance_active(ta, p_t0, p_t1, order, act, n_act, i_s, n):
+    """Sweep step at breakpoint ta: pieces that ended drop out of act, pieces that start join (no piece
+    end lies inside (ta, next breakpoint)). i_s: how many pieces, by start, have joined so far.
+    Returns (n_act, i_s)."""
+    j = 0
+    for m in range(n_act):
+        if p_t1[act[m]] > ta:
+            act[j] = act[m]
+            j += 1
+    n_act = j
+    while i_s < n and p_t0[order[i_s]] <= ta:
+        act[n_act] = order[i_s]
+        n_act += 1
+        i_s += 1
+    return n_act, i_s
+
+
 @njit(**NJIT)
 def composite(n_p, tmin, tmax, scratch):
     """Cut every chord's curve to the intervals between consecutive chord ends and add them up.
@@ -154,11 +182,7 @@ def composite(n_p, tmin, tmax, scratch):
     p_t0, p_t1, p_c = scratch[0], scratch[1], scratch[2]
     bp, order, act = scratch[3], scratch[4], scratch[5]
     iv_t0, iv_t1, iv_c, iv_mag = scratch[6], scratch[7], scratch[8], scratch[9]
-    for k in range(n_p):
-        bp[2 * k] = p_t0[k]
-        bp[2 * k + 1] = p_t1[k]
-    heap_sort(bp, 2 * n_p)
-    heap_argsort(p_t0, order, n_p)
+    sort_breakpoints(p_t0, p_t1, n_p, bp, order)
     n_act = 0
     i_s = 0
     n_iv = 0
@@ -169,17 +193,7 @@ def composite(n_p, tmin, tmax, scratch):
             break
         if tb <= ta:
             continue
-        # chords that ended drop out; chords that start here join (no chord end lies inside (ta, tb))
-        j = 0
-        for m in range(n_act):
-            if p_t1[act[m]] > ta:
-                act[j] = act[m]
-                j += 1
-        n_act = j
-        while i_s < n_p and p_t0[order[i_s]] <= ta:
-            act[n_act] = order[i_s]
-            n_act += 1
-            i_s += 1
+        n_act, i_s = advance_active(ta, p_t0, p_t1, order, act, n_act, i_s, n_p)
         lo = max(ta, tmin)
         hi = min(tb, tmax)
         if n_act == 0 or hi <= lo:
