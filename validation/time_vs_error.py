@@ -1,0 +1,213 @@
+"""Wall time against error for every quality setting of the renderer: the figure to choose settings by.
+
+For the 77-ball cumulus (scenes/cumulus.yaml) and a 1,200-ball stratocumulus bank (scenes/dense_1000.yaml,
+made by scenes/make_dense.py), renders each setting and measures its wall time and its relative RMSE
+against the ``reference`` setting of the same image:
+
+    rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / sqrt(mean of L_ref^2)
+
+Settings: the presets draft, default, fine (exact shadow rays); shadow maps (``shadows: map``) at the
+default quality with 128, 384 (the renderer's default) and 1024 texels per side, and at draft with 384.
+The ``reference`` itself is checked on a small image against a setting tighter still (``vs tighter``: the
+check setting of validation/render_quality.py), so that its own error shows the floor under every other
+figure. The Pareto curve (settings that no other
+setting beats in both time and error) is drawn in validation/results/time_vs_error.png.
+
+    python -m validation.time_vs_error [--size 256] [--check-size 64] [--scenes ...] [--quick]
+
+Times are wall-clock seconds on the machine that runs it (the project's: 2 cores, shared), one render
+each after a warm-up, so expect some noise. Requirement: the default quality below 1e-3 relative RMSE on
+every scene, every image finite. Reuses validation/render_quality.py (rel_rmse, with_quality, ULTRA).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numpy as np
+
+import cloudmeta as cm
+from validation import render_quality
+from validation.render_quality import rel_rmse, with_quality
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = Path(__file__).resolve().parent / "results"
+SCENES = (ROOT / "scenes" / "cumulus.yaml", ROOT / "scenes" / "dense_1000.yaml")
+#: label -> render settings (``reference`` is the baseline and comes first)
+SETTINGS = {
+    "reference": dict(quality="reference"),
+    "draft": dict(quality="draft"),
+    "default": dict(quality="default"),
+    "fine": dict(quality="fine"),
+    "default + map 128": dict(quality="default", shadows="map", shadow_map=128),
+    "default + map 384": dict(quality="default", shadows="map", shadow_map=384),
+    "default + map 1024": dict(quality="default", shadows="map", shadow_map=1024),
+    "draft + map 384": dict(quality="draft", shadows="map", shadow_map=384),
+}
+QUICK_SETTINGS = ("reference", "draft", "default", "default + map 128")
+DEFAULT_BOUND = 1e-3
+
+
+def timed(scene):
+    t0 = time.perf_counter()
+    img = cm.render(scene, progress=False)
+    return np.asarray(img, np.float64), time.perf_counter() - t0
+
+
+def tighter(scene):
+    """validation/render_quality.py's check setting, tighter than ``reference`` (ULTRA, and its step length
+    where that script defines one)."""
+    extra = {}
+    if hasattr(render_quality, "ULTRA_LENGTH"):
+        lo, hi = scene.bbox()
+        extra["max_length"] = render_quality.ULTRA_LENGTH * float(np.linalg.norm(hi - lo))
+    return with_quality(scene, **{**render_quality.ULTRA, **extra})
+
+
+def pareto(rows):
+    """The rows that no other row beats in both time and error (ties kept)."""
+    front = []
+    best = np.inf
+    for r in sorted(rows, key=lambda r: (r["seconds"], r["rel_rmse"])):
+        if r["rel_rmse"] < best:
+            front.append(r)
+            best = r["rel_rmse"]
+    return front
+
+
+def run_scene(path, size, check_size, labels):
+    name = Path(path).stem
+    # warm-up: compile (or load from the cache) everything a setting may use, outside the timings
+    small = cm.load_scene(path, width=8, height=8)
+    cm.render(small, progress=False)
+    cm.render(with_quality(small, shadows="map", shadow_map=16), progress=False)
+    scene = cm.load_scene(path, width=size, height=size, spp=1)
+    rows = []
+    ref = None
+    for label in labels:
+        img, t = timed(with_quality(scene, **SETTINGS[label]))
+        finite = bool(np.all(np.isfinite(img)))
+        if ref is None:
+            ref = img
+        rows.append(dict(scene=name, size=size, setting=label, seconds=t, rel_rmse=rel_rmse(img, ref),
+                         max_abs=float(np.abs(img[..., :3] - ref[..., :3]).max()), finite=finite))
+    check = cm.load_scene(path, width=check_size, height=check_size, spp=1)
+    r_small, _ = timed(with_quality(check, quality="reference"))
+    ultra, _ = timed(tighter(check))
+    rows.append(dict(scene=name, size=check_size, setting="reference vs tighter", seconds=float("nan"),
+                     rel_rmse=rel_rmse(r_small, ultra), max_abs=float(np.abs(r_small - ultra)[..., :3].max()),
+                     finite=bool(np.all(np.isfinite(r_small)))))
+    for r in pareto([r for r in rows if r["setting"] not in ("reference", "reference vs tighter")]):
+        r["pareto"] = True
+    for r in rows:
+        r.setdefault("pareto", False)
+    return rows
+
+
+def plot(rows, out):
+    """One panel per scene: every setting (time, error), the Pareto front, the reference's time and its own
+    error, and the default's promise."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(6.2 * len(scenes), 4.8), sharey=True, squeeze=False)
+    offsets = ((5, 4), (5, -11), (-10, 9), (5, 12), (-10, -14))
+    for k, (ax, scene) in enumerate(zip(axes[0], scenes)):
+        colour = f"C{k}"
+        pts = sorted([r for r in rows if r["scene"] == scene
+                      and r["setting"] not in ("reference", "reference vs tighter")], key=lambda r: r["seconds"])
+        front = [r for r in pts if r["pareto"]]
+        ax.plot([r["seconds"] for r in front], [r["rel_rmse"] for r in front], "-", color=colour, lw=1.2,
+                label="Pareto front")
+        for j, r in enumerate(pts):
+            marker = "s" if "map" in r["setting"] else "o"
+            ax.plot(r["seconds"], r["rel_rmse"], marker, color=colour, mfc=colour if r["pareto"] else "none")
+            ax.annotate(r["setting"], (r["seconds"], r["rel_rmse"]), textcoords="offset points",
+                        xytext=offsets[j % len(offsets)], fontsize=7, color="k",
+                        ha="left" if offsets[j % len(offsets)][0] > 0 else "right")
+        ref = [r for r in rows if r["scene"] == scene and r["setting"] == "reference"][0]
+        ax.axvline(ref["seconds"], color=colour, ls=":", lw=0.8)
+        ax.annotate(f"reference: {ref['seconds']:.0f} s", (ref["seconds"], 0.97), xycoords=("data", "axes fraction"),
+                    rotation=90, fontsize=7, color=colour, ha="right", va="top")
+        floor = [r for r in rows if r["scene"] == scene and r["setting"] == "reference vs tighter"][0]
+        ax.axhline(floor["rel_rmse"], color=colour, ls="-.", lw=0.6, label="the reference's own error")
+        ax.axhline(DEFAULT_BOUND, color="grey", ls="--", lw=0.8, label="1e-3: the default's promise")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(f"wall time [s], {ref['size']} x {ref['size']} pixels (2 cores)")
+        ax.set_title(scene, fontsize=10)
+        ax.legend(fontsize=7, loc="lower left")
+    axes[0][0].set_ylabel("relative RMSE against the reference setting")
+    fig.suptitle("cloudmeta: time against error (circles: exact shadow rays, squares: shadow maps; "
+                 "filled: on the Pareto front)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out, dpi=130)
+    plt.close(fig)
+
+
+def read_csv(path):
+    """Rows of a time_vs_error.csv, typed (to redraw the plot without rendering again)."""
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r["size"] = int(r["size"])
+        for k in ("seconds", "rel_rmse", "max_abs"):
+            r[k] = float(r[k])
+        for k in ("finite", "pareto"):
+            r[k] = r[k] == "True"
+    return rows
+
+
+def main(argv=None, quick=False):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--size", type=int, default=None, help="image side in pixels (default 256; 20 quick)")
+    ap.add_argument("--check-size", type=int, default=None, help="image side of the reference check (default 64)")
+    ap.add_argument("--scenes", nargs="+", default=[str(s) for s in SCENES])
+    ap.add_argument("--quick", action="store_true", help="small images and fewer settings, for the test")
+    args = ap.parse_args([] if argv is None else argv)
+    quick = quick or args.quick
+    size = args.size or (20 if quick else 256)
+    check = args.check_size or (10 if quick else 64)
+    labels = QUICK_SETTINGS if quick else tuple(SETTINGS)
+    start = time.perf_counter()
+    rows = [r for s in args.scenes for r in run_scene(s, size, check, labels)]
+    elapsed = time.perf_counter() - start
+    print(f"Time against error, {size} x {size} pixels (relative RMSE against the reference setting)\n")
+    head = f"{'scene':12s} {'size':>5s} {'setting':22s} {'time [s]':>9s} {'x ref':>6s} {'rel RMSE':>10s} " \
+           f"{'max abs':>9s} {'Pareto':>6s}"
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        ref_t = [q["seconds"] for q in rows if q["scene"] == r["scene"] and q["setting"] == "reference"][0]
+        speed = "" if not np.isfinite(r["seconds"]) else f"{r['seconds'] / ref_t:6.3f}"
+        print(f"{r['scene']:12s} {r['size']:5d} {r['setting']:22s} {r['seconds']:9.2f} {speed:>6s} "
+              f"{r['rel_rmse']:10.2e} {r['max_abs']:9.2e} {'*' if r['pareto'] else '':>6s}")
+    ok_default = all(r["rel_rmse"] < DEFAULT_BOUND for r in rows if r["setting"] == "default")
+    ok_finite = all(r["finite"] for r in rows)
+    passed = ok_default and ok_finite
+    print("\nx ref: time as a fraction of the reference setting's; Pareto: on the time/error front;\n"
+          "reference vs tighter: the reference setting's own error on a small image (against render_quality's "
+          "tighter check setting).")
+    print(f"{'PASS' if passed else 'FAIL'}: default below {DEFAULT_BOUND:g} relative RMSE on every scene "
+          f"({'yes' if ok_default else 'NO'}), every image finite ({'yes' if ok_finite else 'NO'})   "
+          f"[{elapsed:.1f} s]")
+    if not quick:
+        RESULTS.mkdir(exist_ok=True)
+        with open(RESULTS / "time_vs_error.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+        plot(rows, RESULTS / "time_vs_error.png")
+        print(f"wrote {RESULTS / 'time_vs_error.csv'} and {RESULTS / 'time_vs_error.png'}")
+    return dict(rows=rows, passed=passed, seconds=elapsed)
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
