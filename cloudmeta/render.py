@@ -6,8 +6,8 @@ keys overrides that preset's value:
 =============== ======= ======= ======= ========== ====================================================
 key             draft   default fine    reference  meaning
 =============== ======= ======= ======= ========== ====================================================
-nodes           2       4       6       8          Gauss-Legendre nodes per quadrature step
-max_tau         2.0     1.0     0.5     0.1        thickest step, in optical depth
+nodes           2       5       6       8          Gauss-Legendre nodes per quadrature step
+max_tau         2.0     0.5     0.25    0.1        thickest step, in optical depth
 max_length      1/16    1/32    1/64    1/128      longest step, as a fraction of the scene's diagonal
                                                    (an explicit ``max_length`` is in scene units)
 max_angle       0.4     0.2     0.1     0.025      widest angle (radians) of a step seen from a point light
@@ -36,8 +36,8 @@ from .scene import DirectionalLight, RenderSettings, Scene
 
 PRESETS = {
     "draft": dict(nodes=2, max_tau=2.0, max_length=1 / 16, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
-    "default": dict(nodes=4, max_tau=1.0, max_length=1 / 32, max_angle=0.2, cutoff=1e-3, root_tolerance=1e-9),
-    "fine": dict(nodes=6, max_tau=0.5, max_length=1 / 64, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
+    "default": dict(nodes=5, max_tau=0.5, max_length=1 / 32, max_angle=0.2, cutoff=1e-3, root_tolerance=1e-9),
+    "fine": dict(nodes=6, max_tau=0.25, max_length=1 / 64, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
     "reference": dict(nodes=8, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0,
                       root_tolerance=1e-9),
 }
