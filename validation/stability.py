@@ -19,8 +19,8 @@ sigma = scale x max(T, 1) the density at a crossing (an upper bound: field mode 
 - inside length: |L - L_ref| <= n (tol_t + x)
   where x is 0, except far from the origin (x = 8 eps |coordinates|: the coordinates' own rounding moves
   a root by that much before any computation).
-- tangent rays (a single sphere, exact length): |L - L_exact| <= tol_t + 2 r sqrt(4e-16), r the radius of
-  the isosurface: the bound of docs/model_notes.md (the square-root amplification of one rounding of F).
+- tangent rays (a single sphere, exact length): |L - L_exact| <= tol_t + 2 sqrt(2 delta / |F''|): the bound of
+  docs/model_notes.md (the square-root amplification of the engine's touch level delta = ROUND_F x sum|q k|).
 - tangent rays to a composite surface: the same bound in its general form, |L - L_exact| <= tol_t +
   2 sqrt(2 delta / |F''|), delta = 4e-16 x sum_i |q_i k_i| at the touching point (one rounding of F's
   terms) and F'' the second derivative of F along the ray there (for one sphere this is the notes' bound
@@ -57,6 +57,7 @@ import mpmath as mp
 import numpy as np
 
 import cloudmeta as cm
+from cloudmeta.kernels.sweep import NOISE
 from validation import _plain as P
 from validation.render_quality import rel_rmse, with_quality
 
@@ -64,7 +65,8 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results"
 EPS = np.finfo(float).eps
 DPS = 50
-ROUND_F = 4e-16  # one rounding of F, relative to its terms (docs/model_notes.md: 2 r sqrt(4e-16))
+ROUND_F = 8 * NOISE  # the engine's touch level, 64 eps (T + sum |c|), is at most 8 x 64 eps x sum|q k| here
+                    # (docs/model_notes.md)
 
 
 # --- exact references (mpmath, from the float inputs) ---------------------------------------------------------
