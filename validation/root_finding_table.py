@@ -102,7 +102,9 @@ def run_laguerre(g, tol):
 
 def clipping_steps(g, tol):
     """Clipping iterations for g: a line-by-line Python mirror of clip_roots's loop, counting its steps
-    (clip_roots does not report them). Returns (steps, roots) so that the mirror can be checked against it."""
+    (clip_roots does not report them). Returns (steps, roots) so that the mirror can be checked against it.
+    clip_roots takes the same steps, but runs two pending intervals side by side; this mirror, one at a time."""
+    from cloudmeta.kernels.clipping import FAT
     nc = len(g)
     if _no_crossing(g):
         return 1, []
@@ -115,8 +117,9 @@ def clipping_steps(g, tol):
             if _no_crossing(c):
                 break
             smin, smax = hull_crossing(c, np.empty(len(c)))
-            if smax < smin:
-                break
+            if smax < smin:  # only rounding, the sign test having seen both classes (as clip_roots)
+                smin, smax = (smax, smin) if smin <= 1.0 and smax >= 0.0 else (0.0, 1.0)
+            smin, smax = max(smin - FAT, 0.0), min(smax + FAT, 1.0)
             w = hi - lo
             if (smax - smin) * w <= tol or steps > MAX_STEPS:
                 if (c[0] >= 0.0) != (c[-1] >= 0.0):

@@ -4,11 +4,22 @@ A root counts only where the sign class really changes (class: g >= 0); a touch 
 The scratch stack holds intervals still to examine; the lower one is always taken first, so roots come
 out sorted without a sort.
 
-Speed: the curves are degree 6, and the loop keeps the current interval's 7 control values in scalar
-locals (registers) from step to step; arrays are touched only element by element, to push and pop the split
-stack and to write the roots. No array view is created in ``clip_roots``, so numba emits no reference
-counting for its array arguments (an atomic increment and decrement per array and call otherwise, about
-40 ns, more than a whole clipping step).
+Speed (a clipping step is a chain of dependent arithmetic, some 300 instructions; the loop is bound by its
+latency):
+
+- the curves are degree 6, and the loop keeps the current interval's 7 control values in scalar locals
+  (registers) from step to step; arrays are touched only element by element, to push and pop the split
+  stack and to write the roots. No array view is made and no function is called in ``clip_roots`` (every
+  helper is inlined), so numba's reference-count pruning removes the atomic increment and decrement of
+  each array argument (about 40 ns a call otherwise, more than a whole clipping step);
+- the hull's crossing is found by gift wrapping from each end (``_walk``): one hop, usually, of six
+  slopes, a minimum and one division, instead of building the hull;
+- the subdivision to [smin, smax] forms the 7 blossoms f(s0, .., s1) in a pyramid 6 lerps deep rather than
+  splitting twice (12 deep), each lerp a fused multiply-add (``_fma``);
+- two intervals, where there are two (the two roots of a chord through a blob), are clipped side by side,
+  so that the processor overlaps their two chains (see ``clip_roots``);
+- the touch test's subdivision is skipped where |g| at the interval's start already exceeds the noise
+  level, and Newton's second polishing step where it could not move the root.
 """
 import numpy as np
 from llvmlite import ir
@@ -30,7 +41,6 @@ MAX_STEPS = 400
 #: rounding in the crossing and in the subdivision cannot shave a root at the interval's end off
 FAT = 1e-12
 
-_THIRD = 1.0 / 3.0
 _SIXTH = 1.0 / 6.0
 _INF = np.inf
 
@@ -50,12 +60,6 @@ def _fma(typingctx, x, y, z):
                                             "llvm.fma.f64")
         return builder.call(fn, args)
     return sig, codegen
-
-
-@njit(**NJIT_INLINE)
-def _lerp(a, b, t):
-    """(1 - t) a + t b as a + t (b - a), with one rounding for the multiply-add."""
-    return _fma(t, b - a, a)
 
 
 @njit(**NJIT_INLINE)
@@ -125,11 +129,11 @@ def _hull7(c0, c1, c2, c3, c4, c5, c6):
 def _subdivide7(c0, c1, c2, c3, c4, c5, c6, s0, s1):
     """Control values on [s0, s1] (0 <= s0 < s1 <= 1) of a degree-6 curve, reparametrised to [0, 1].
 
-    The k-th is the blossom f(s0, .., s0, s1, .., s1) with k arguments s1 (``blossom7``'s pyramid): a lerp
-    at s0 or at s1 of adjacent values applies one more argument, and the order does not matter. Applying
-    s1 first where that lets two answers share a path, the 7 answers take 58 lerps (convex combinations,
-    as in de Casteljau's algorithm) only 6 deep, where split-then-split takes 42 lerps 12 deep: the depth
-    is the clipping loop's critical path."""
+    The k-th is the blossom f(s0, .., s0, s1, .., s1) with k arguments s1: a lerp at s0 or at s1 of
+    adjacent values applies one more argument, and the order does not matter. Applying s1 first where
+    that lets two answers share a path, the 7 answers take 58 lerps (a + t (b - a), one fused multiply-add
+    each; t in [0, 1] as in de Casteljau's algorithm) only 6 deep, where split-then-split takes 42 lerps
+    12 deep: the depth is on the clipping loop's critical path."""
     # level 1: arguments (s0) and (s1)
     a0 = _fma(s0, c1 - c0, c0)
     a1 = _fma(s0, c2 - c1, c1)
