@@ -16,7 +16,7 @@ from .kernels.trace import field_at, trace_rays
 #: default root tolerance, relative to the blob's bounding-box diagonal (MODEL.md §3)
 ROOT_TOLERANCE = 1e-9
 DENSITY_MODES = {"field": DENSITY_FIELD, "excess": DENSITY_EXCESS, "uniform": DENSITY_UNIFORM}
-TRACEABLE_KERNELS = ("wyvill6", "murakami4")
+TRACEABLE_KERNELS = ("wyvill6", "murakami4", "nishimura", "blinn")
 
 
 def _points(name, value):
@@ -92,7 +92,7 @@ def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1
     n_seg = np.empty(n, np.int64)
     roots = np.empty((n, cap))
     segs = np.empty((n, cap, 2))
-    args = (blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.threshold, tol,
+    args = (blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, blob.threshold, tol,
             DENSITY_MODES[density], float(scale), blob.bvh)
     trace_rays(o, d, tm, *args, cap, n_chunks(n), tau, n_roots, roots, n_seg, segs)
     if not lists:

@@ -82,11 +82,12 @@ class PackedMedia:
     albedo: np.ndarray
     phase: np.ndarray      # (M, 4): kind, g1, g2, w
     bvh: tuple             # node_box, node_a, node_b, node_n, items of all media; root (M,) per medium
+    blobbiness: np.ndarray  # (M,) b of the blinn kernel (unused by the others)
 
     def args(self):
         """The ``med`` tuple of cloudmeta.kernels.radiance."""
         return (self.centers, self.frames, self.weights, self.start, self.kernel, self.threshold, self.mode,
-                self.scale, self.albedo, self.phase, *self.bvh)
+                self.scale, self.albedo, self.phase, *self.bvh, self.blobbiness)
 
 
 def merge_bvhs(blobs, starts):
@@ -124,7 +125,8 @@ def pack_media(media) -> PackedMedia:
         mode=np.array([DENSITY_MODES[m.density.mode] for m in media], np.int64),
         scale=np.array([m.density.scale for m in media], np.float64),
         albedo=np.array([m.albedo for m in media], np.float64), phase=phase,
-        bvh=merge_bvhs(blobs, np.concatenate([[0], np.cumsum(counts)])[:-1]))
+        bvh=merge_bvhs(blobs, np.concatenate([[0], np.cumsum(counts)])[:-1]),
+        blobbiness=np.array([b.blobbiness for b in blobs], np.float64))
 
 
 def pack_lights(lights, maps=None):

@@ -1,7 +1,7 @@
 """Every medium along one ray: the pieces a camera ray integrates over, and the optical depth of a
 shadow ray. The media are packed as one ``med`` tuple (see cloudmeta.render.PackedMedia.args):
 (centers, frames, weights, start, kernel, threshold, mode, scale, albedo, phase,
- node_box, node_a, node_b, node_n, items, root)."""
+ node_box, node_a, node_b, node_n, items, root, blobbiness)."""
 import math
 
 import numpy as np
@@ -33,8 +33,8 @@ def medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack):
                             stack, cand)
     if n_cand == 0:
         return scratch, 0
-    scratch, n_out, _ = trace_blob(o, d, 0.0, tmax, centers, frames, weights, kernel[m], threshold[m], tol_t,
-                                   cand, n_cand, False, scratch)
+    scratch, n_out, _ = trace_blob(o, d, 0.0, tmax, centers, frames, weights, kernel[m], med[16][m], threshold[m],
+                                   tol_t, cand, n_cand, False, scratch)
     return scratch, n_out
 
 

@@ -14,7 +14,8 @@ from numba import njit
 from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF, _casteljau_rows, bernstein_mean, subdivide
 from .clipping import STACK_DEPTH, clip_roots
-from .metaball import chord, control_values
+from .metaball import (DONE, MIDDLE, PAIR, chord, control_values, is_piecewise, keep_piece, next_piece,
+                       nishimura_inner_values, pair_ends, piece_plan, piece_values)
 
 #: inside pieces per composite interval at most: a degree-6 curve changes class at most 6 times
 PIECES_PER_INTERVAL = 4
@@ -120,25 +121,90 @@ def _sift_values(a, root, n):
 
 
 @njit(**NJIT)
-def gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, cand, n_cand, scratch):
+def gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, cand, n_cand, scratch):
     """Chords of the candidate balls that overlap [tmin, tmax], with their control values.
 
-    Returns how many there are; only the first ``capacity`` are written, so a larger count tells the
-    caller to grow the scratch and call again.
+    wyvill6 and murakami4 give one exact curve per chord; nishimura and blinn (``blobbiness`` b) give
+    several pieces per chord, each a degree-6 curve within 1e-12 |q| of the kernel: the loop of
+    metaball.chord_pieces, written out here on scalars with helpers that numba inlines. A call left in
+    this function (one that takes the arrays, or any non-inlined jitted one) would make numba count
+    references to all of its arrays on every call, which costs the polynomial kernels about 5% per ray.
+    Returns how many curves there are; only the first ``capacity`` are written, so a larger count tells
+    the caller to grow the scratch and call again.
     """
     p_t0, p_t1, p_c = scratch[0], scratch[1], scratch[2]
     cap = p_t0.shape[0]
+    piecewise = is_piecewise(kernel)
     n = 0
     for k in range(n_cand):
         i = cand[k]
         t0, t1, a = chord(o, d, centers[i], frames[i])
         if a <= 0.0 or t1 <= tmin or t0 >= tmax or weights[i] == 0.0:
             continue
-        if n < cap:
-            p_t0[n] = t0
-            p_t1[n] = t1
-            control_values(kernel, min(a, 1.0), weights[i], p_c[n])
-        n += 1
+        if not piecewise:
+            if n < cap:
+                p_t0[n] = t0
+                p_t1[n] = t1
+                control_values(kernel, min(a, 1.0), weights[i], p_c[n])
+            n += 1
+            continue
+        a = min(a, 1.0)
+        q = weights[i]
+        inner, s_stop = piece_plan(kernel, a)
+        alpha = 0.0
+        ta = t0
+        tb = t1
+        while True:
+            kind, beta = next_piece(kernel, a, blobbiness, inner, s_stop, alpha)
+            if kind == PAIR:
+                tl, tr = pair_ends(t0, t1, beta)
+                kl = keep_piece(ta, tl, tmin, tmax)
+                kr = keep_piece(tr, tb, tmin, tmax)
+                if (kl and n < cap) or (kr and n + kl < cap):
+                    c0, c1, c2, c3, c4, c5, c6 = piece_values(kernel, a, blobbiness, q, alpha, beta)
+                    if kl and n < cap:
+                        p_t0[n] = ta
+                        p_t1[n] = tl
+                        p_c[n, 0] = c0
+                        p_c[n, 1] = c1
+                        p_c[n, 2] = c2
+                        p_c[n, 3] = c3
+                        p_c[n, 4] = c4
+                        p_c[n, 5] = c5
+                        p_c[n, 6] = c6
+                    m = n + kl
+                    if kr and m < cap:  # the mirror: the same values, reversed
+                        p_t0[m] = tr
+                        p_t1[m] = tb
+                        p_c[m, 0] = c6
+                        p_c[m, 1] = c5
+                        p_c[m, 2] = c4
+                        p_c[m, 3] = c3
+                        p_c[m, 4] = c2
+                        p_c[m, 5] = c1
+                        p_c[m, 6] = c0
+                n += kl + kr
+                alpha = beta
+                ta = tl
+                tb = tr
+                continue
+            if kind != DONE and keep_piece(ta, tb, tmin, tmax):
+                if n < cap:
+                    if kind == MIDDLE:
+                        c0, c1, c2, c3, c4, c5, c6 = piece_values(kernel, a, blobbiness, q, alpha, beta)
+                    else:
+                        c0, c1, c2, c3, c4, c5, c6 = nishimura_inner_values(a, q)
+                    p_t0[n] = ta
+                    p_t1[n] = tb
+                    p_c[n, 0] = c0
+                    p_c[n, 1] = c1
+                    p_c[n, 2] = c2
+                    p_c[n, 3] = c3
+                    p_c[n, 4] = c4
+                    p_c[n, 5] = c5
+                    p_c[n, 6] = c6
+                n += 1
+            break
     return n
 
 
@@ -336,14 +402,14 @@ def pieces_optical_depth(n_out, mode, threshold, scale, scratch):
 
 
 @njit(**NJIT)
-def trace_blob(o, d, tmin, tmax, centers, frames, weights, kernel, threshold, tol_t, cand, n_cand,
+def trace_blob(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, threshold, tol_t, cand, n_cand,
                first_only, scratch):
     """Chords, composite and inside pieces of one ray; grows the scratch when the ray meets more chords
     than it holds. Returns (scratch, n_pieces, n_transitions)."""
-    n_p = gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, cand, n_cand, scratch)
+    n_p = gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, cand, n_cand, scratch)
     if n_p > capacity_of(scratch):
         scratch = alloc_scratch(2 * n_p)
-        gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, cand, n_cand, scratch)
+        gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, cand, n_cand, scratch)
     if n_p == 0:
         return scratch, 0, 0
     n_iv = composite(n_p, tmin, tmax, scratch)

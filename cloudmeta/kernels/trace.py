@@ -14,7 +14,7 @@ INITIAL_CAPACITY = 64
 
 
 @njit(**NJIT_PARALLEL)
-def trace_rays(origins, dirs, tmax, centers, frames, weights, kernel, threshold, tol_t, mode, scale, bvh,
+def trace_rays(origins, dirs, tmax, centers, frames, weights, kernel, blobbiness, threshold, tol_t, mode, scale, bvh,
                cap_out, n_chunks, tau, n_roots, roots, n_seg, segs):
     """For each ray: tau (exact optical depth), the transitions (first cap_out) and the inside
     segments (adjacent pieces merged; first cap_out). Counts are the true counts, so a count above
@@ -31,7 +31,7 @@ def trace_rays(origins, dirs, tmax, centers, frames, weights, kernel, threshold,
             n_cand = bvh_candidates(origins[r], dirs[r], 0.0, tmax[r], 0, node_box, node_a, node_b, node_n,
                                     items, stack, cand)
             scratch, n_out, n_tr = trace_blob(origins[r], dirs[r], 0.0, tmax[r], centers, frames, weights,
-                                              kernel, threshold, tol_t, cand, n_cand, False, scratch)
+                                              kernel, blobbiness, threshold, tol_t, cand, n_cand, False, scratch)
             tau[r] = pieces_optical_depth(n_out, mode, threshold, scale, scratch)
             n_roots[r] = n_tr
             tr = scratch[13]
