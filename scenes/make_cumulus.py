@@ -1,8 +1,9 @@
 """Writes cumulus.csv: a 77-ball cumulus (the paper's cloud has 77 metaballs), deterministic.
 
 A flat base of wide, squashed balls and a cauliflower top of smaller ones heaped towards the middle.
-Run from the repository root: python scenes/make_cumulus.py
+Run from the repository root: python scenes/make_cumulus.py [OUTDIR]
 """
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,7 @@ def cumulus(n=77, seed=7):
 
 
 if __name__ == "__main__":
-    here = Path(__file__).parent
+    here = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent
     balls = cumulus()
     np.savetxt(here / "cumulus.csv", balls, delimiter=",", fmt="%.4f", header="x,y,z,rx,ry,rz,ax,ay,az,weight",
                comments="")

@@ -5,8 +5,9 @@ flattened ellipsoids at the base (z ~ 2) under a cauliflower of smaller spheres 
 the cell's middle. The cells sit on a jittered grid and vary in size, so that the bank breaks up into
 rolls and holes as stratocumulus does. Seen from an aircraft above the bank in dense_1000.yaml.
 
-Run from the repository root: python scenes/make_dense.py
+Run from the repository root: python scenes/make_dense.py [OUTDIR]
 """
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +66,7 @@ def dense(n=N_BALLS, seed=11):
 
 
 if __name__ == "__main__":
-    here = Path(__file__).parent
+    here = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent
     balls = dense()
     np.savetxt(here / "dense_1000.csv", balls, delimiter=",", fmt="%.4f", header="x,y,z,rx,ry,rz,ax,ay,az,weight",
                comments="")

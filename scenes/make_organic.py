@@ -19,7 +19,7 @@ Run from the repository root: python scenes/make_organic.py [OUTDIR]
 """
 import numpy as np
 
-from shapes import ellipsoid, out_dir, sphere, unit, write_balls
+from shapes import ellipsoid, out_dir, sphere, write_balls
 
 #: chain of unit spheres 0.3 apart (wyvill6, T = 0.5): isosurface radius 0.70
 ISO = 0.70
@@ -38,7 +38,7 @@ PIT = ((-2.0, 4.3, 1.2), (-1.6, 3.8, 1.0), (-2.4, 3.9, 1.0), (-2.0, 3.4, 0.9))  
 
 
 def catmull_rom(points, samples=2000):
-    """Points (n, k) on the centripetal-free (uniform) Catmull-Rom spline through ``points``."""
+    """``samples`` points (samples, k) on the uniform Catmull-Rom spline through ``points`` (n, k)."""
     p = np.vstack([2 * points[0] - points[1], points, 2 * points[-1] - points[-2]])
     t = np.linspace(0, len(points) - 1, samples)
     i = np.minimum(t.astype(int), len(points) - 2)
@@ -88,10 +88,9 @@ def organic(seed=5):
         centre = centres[k] + 0.78 * rho[k] * radial + along * t
         r = rho[k] * rng.uniform(0.42, 0.58)
         rows.append(ellipsoid(centre, t, radial, (1.6 * r, r, 0.8 * r), weight=0.55))
-    # the pit, on the front of the body
+    # the pit: centred on the front of the body, whose tube radius there is about 2.45
     for x, z, r in PIT:
-        y = -DEPTH * 2.45
-        rows.append(sphere((x, y, z), r, weight=-1.2))
+        rows.append(sphere((x, -DEPTH * 2.45, z), r, weight=-1.2))
     return rows
 
 
