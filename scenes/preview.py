@@ -21,7 +21,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository's cloudmeta
 
 from cloudmeta import load_scene  # noqa: E402
-from cloudmeta.inspect import _contour, _prepare_off_screen, sample_grid  # noqa: E402
+from cloudmeta.inspect import _prepare_off_screen, sample_grid  # noqa: E402
 from cloudmeta.scene import DirectionalLight  # noqa: E402
 
 
@@ -33,7 +33,11 @@ def _display(rgb):
 def isosurface(blob, resolution):
     """The mesh of F = T of ``blob`` (a pyvista.PolyData), or None where F never reaches T."""
     grid = sample_grid(blob, resolution)
-    return _contour(grid, "field", blob.threshold)
+    values = grid.point_data["field"]
+    if not values.min() < blob.threshold <= values.max():
+        return None
+    mesh = grid.contour([blob.threshold], scalars="field")
+    return mesh if mesh.n_points else None
 
 
 def preview(scene_path, png, resolution=160, width=None):
