@@ -6,9 +6,9 @@ keys overrides that preset's value:
 =============== ======= ======= ======= ========== ====================================================
 key             draft   default fine    reference  meaning
 =============== ======= ======= ======= ========== ====================================================
-nodes           2       5       6       8          Gauss-Legendre nodes per quadrature step
-max_tau         2.0     0.5     0.25    0.1        thickest step, in optical depth
-max_length      1/16    1/32    1/64    1/128      longest step, as a fraction of the scene's diagonal
+nodes           8       16      16      8          Gauss-Legendre nodes per quadrature step
+max_tau         4.0     4.0     1.0     0.1        thickest step, in optical depth
+max_length      1/4     1/8     1/32    1/128      longest step, as a fraction of the scene's diagonal
                                                    (an explicit ``max_length`` is in scene units)
 max_angle       0.4     0.2     0.1     0.025      widest angle (radians) of a step seen from a point light
 cutoff          1e-2    1e-3    1e-4    0          stop shading once the view transmittance is below
@@ -35,9 +35,9 @@ from .kernels.shadowmap import trace_texels
 from .scene import DirectionalLight, RenderSettings, Scene
 
 PRESETS = {
-    "draft": dict(nodes=2, max_tau=2.0, max_length=1 / 16, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
-    "default": dict(nodes=5, max_tau=0.5, max_length=1 / 32, max_angle=0.2, cutoff=1e-3, root_tolerance=1e-9),
-    "fine": dict(nodes=6, max_tau=0.25, max_length=1 / 64, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
+    "draft": dict(nodes=8, max_tau=4.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
+    "default": dict(nodes=16, max_tau=4.0, max_length=1 / 8, max_angle=0.2, cutoff=1e-3, root_tolerance=1e-9),
+    "fine": dict(nodes=16, max_tau=1.0, max_length=1 / 32, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
     "reference": dict(nodes=8, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0,
                       root_tolerance=1e-9),
 }
