@@ -161,19 +161,12 @@ def build_shadow_maps(lights, med, lo, hi, resolution, tol_t):
         e2 = np.cross(l, e1)
         origin = centre + l * radius - (e1 + e2) * radius
         geo = np.concatenate([origin, e1, e2, -l, [2 * radius / resolution]])
-        n = resolution * resolution
-        counts = np.zeros(n, np.int64)
-        dummy = (np.zeros(1, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 7)), np.zeros(0), np.zeros(0))
-        trace_texels(geo, resolution, med, tol_t, n_chunks(n), False, counts, *dummy)
-        start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        p = int(start[-1])
-        arrays = (np.empty(p), np.empty(p), np.empty((p, 7)), np.empty(p), np.empty(p))
-        trace_texels(geo, resolution, med, tol_t, n_chunks(n), True, counts, start, *arrays)
+        start, arrays = _trace_map(geo, resolution, med, tol_t)
         map_of[i] = len(geos)
         geos.append(geo)
         bases.append(offset)
         parts.append((start, arrays))
-        offset += n
+        offset += resolution * resolution
     if not geos:
         return None
     piece_offsets = np.cumsum([0] + [int(st[-1]) for st, _ in parts])
@@ -181,6 +174,30 @@ def build_shadow_maps(lights, med, lo, hi, resolution, tol_t):
     cat = [np.ascontiguousarray(np.concatenate([a[k] for _, a in parts])) for k in range(5)]
     return (map_of, np.array(geos), np.full(len(geos), resolution, np.int64), np.array(bases, np.int64),
             start.astype(np.int64), *cat)
+
+
+#: map pieces reserved per texel for the single tracing pass (a map that needs more is traced again)
+MAP_PIECES_PER_TEXEL = 4
+
+
+def _trace_map(geo, resolution, med, tol_t):
+    """Every texel's pieces, traced once into per-chunk rows and packed texel after texel.
+    Returns (start (res^2 + 1,), (t0, t1, c, cum, reach))."""
+    n = resolution * resolution
+    chunks = n_chunks(n)
+    cap = MAP_PIECES_PER_TEXEL * (n // chunks + 1)
+    counts = np.zeros(n, np.int64)
+    used = np.zeros(chunks, np.int64)
+    while True:
+        rows = chunks * cap
+        arrays = (np.empty(rows), np.empty(rows), np.empty((rows, 7)), np.empty(rows), np.empty(rows))
+        trace_texels(geo, resolution, med, tol_t, chunks, cap, counts, used, *arrays)
+        if used.max() <= cap:
+            break
+        cap = int(used.max())  # a dense map: the second pass fits
+    keep = np.concatenate([np.arange(ch * cap, ch * cap + used[ch]) for ch in range(chunks)])
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    return start, tuple(np.ascontiguousarray(a[keep]) for a in arrays)
 
 
 def camera_basis(camera, width, height):

@@ -26,33 +26,54 @@ def _texel_origin(geo, i, j, o):
         o[c] = geo[c] + (i + 0.5) * geo[12] * geo[3 + c] + (j + 0.5) * geo[12] * geo[6 + c]
 
 
+@njit(**NJIT)
+def _order_by_start(t0, m, order):
+    """order[:m] = the indices of t0[:m] by increasing value (insertion sort: a texel has few pieces,
+    mostly in order already)."""
+    for r in range(m):
+        order[r] = r
+        q = r
+        while q > 0 and t0[order[q - 1]] > t0[r]:
+            order[q] = order[q - 1]
+            q -= 1
+        order[q] = r
+
+
 @njit(**NJIT_PARALLEL)
-def trace_texels(geo, res, med, tol_t, n_chunks, fill, counts, start, t0, t1, c, cum, reach):
-    """Trace every texel's ray. With fill=False only counts[k] (pieces of texel k) is written; with
-    fill=True the pieces go to [start[k], start[k+1]) of t0, t1, c, cum, reach."""
+def trace_texels(geo, res, med, tol_t, n_chunks, cap, counts, used, t0, t1, c, cum, reach):
+    """Trace every texel's ray, once. Chunk ch writes the pieces of its texels, texel after texel, to rows
+    [ch * cap, ch * cap + used[ch]) of t0, t1, c, cum, reach; counts[k] is the number of pieces of texel
+    k. Every piece is counted even past cap, so used[ch] > cap tells the caller to call again with a
+    larger cap (the chunks' rows are then incomplete)."""
     n = res * res
     for chunk in prange(n_chunks):
         scratch = alloc_scratch(64)
         rp = alloc_ray_pieces(64, med[3].shape[0] - 1)
         cand = np.empty(max(med[0].shape[0], 1), np.int64)
         stack = np.empty(128, np.int64)
+        order = np.empty(64, np.int64)
         o = np.empty(3)
         d = np.empty(3)
         for q in range(3):
             d[q] = geo[9 + q]
+        row0 = chunk * cap
+        n_used = 0
         for k in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
             _texel_origin(geo, k // res, k % res, o)
             scratch, rp, m = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
-            if not fill:
-                counts[k] = m
+            counts[k] = m
+            if n_used + m > cap:
+                n_used += m
                 continue
             # pieces of several media come medium by medium: order them by t0 for the lookup
-            order = np.argsort(rp[0][:m])
+            if m > order.shape[0]:
+                order = np.empty(2 * m, np.int64)
+            _order_by_start(rp[0], m, order)
             acc = 0.0
             far = -np.inf
             for r in range(m):
                 i = order[r]
-                p = start[k] + r
+                p = row0 + n_used + r
                 t0[p] = rp[0][i]
                 t1[p] = rp[1][i]
                 c[p, :] = rp[2][i]
@@ -60,6 +81,8 @@ def trace_texels(geo, res, med, tol_t, n_chunks, fill, counts, start, t0, t1, c,
                 cum[p] = acc
                 far = max(far, t1[p])
                 reach[p] = far
+            n_used += m
+        used[chunk] = n_used
 
 
 @njit(**NJIT)
