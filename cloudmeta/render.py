@@ -6,17 +6,22 @@ keys overrides that preset's value:
 =============== ======= ======= ======= ========== ====================================================
 key             draft   default fine    reference  meaning
 =============== ======= ======= ======= ========== ====================================================
-nodes           8       16      16      8          Gauss-Legendre nodes per quadrature step
-max_tau         4.0     4.0     1.0     0.1        thickest step, in optical depth
-max_length      1/4     1/8     1/32    1/128      longest step, as a fraction of the scene's diagonal
+tolerance       1e-2    3e-3    1e-3    1e-6       error allowed in the light J per unit of optical
+                                                   depth (weighted by the view transmittance), relative
+                                                   to the brightest J on the ray
+max_tau         4.0     2.0     1.0     0.1        thickest step, in optical depth
+max_length      1/4     1/16    1/32    1/128      longest step, as a fraction of the scene's diagonal
                                                    (an explicit ``max_length`` is in scene units)
 max_angle       0.4     0.2     0.1     0.025      widest angle (radians) of a step seen from a point light
 cutoff          1e-2    1e-3    1e-4    0          stop shading once the view transmittance is below
 root_tolerance  1e-9    1e-9    1e-9    1e-9       root tolerance, relative to the scene's diagonal
 =============== ======= ======= ======= ========== ====================================================
 
-The optical depth, the view transmittance and the shadow transmittance are exact at every setting;
-the settings only trade the quadrature of the in-scattering integral against time.
+Each step of the in-scattering integral takes 7 Gauss nodes; where the two highest Legendre coefficients
+of J on them exceed the tolerance, the 8 Kronrod nodes join (G7-K15), and where the two rules still
+disagree by more than the tolerance allows the step is halved (at most 6 times). The optical depth, the
+view transmittance and the shadow transmittance are exact at every setting; the settings only trade the
+quadrature of the in-scattering integral against time.
 """
 from __future__ import annotations
 
@@ -35,10 +40,11 @@ from .kernels.shadowmap import trace_texels
 from .scene import DirectionalLight, RenderSettings, Scene
 
 PRESETS = {
-    "draft": dict(nodes=8, max_tau=4.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
-    "default": dict(nodes=16, max_tau=4.0, max_length=1 / 8, max_angle=0.2, cutoff=1e-3, root_tolerance=1e-9),
-    "fine": dict(nodes=16, max_tau=1.0, max_length=1 / 32, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
-    "reference": dict(nodes=8, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0,
+    "draft": dict(tolerance=1e-2, max_tau=4.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
+    "default": dict(tolerance=3e-3, max_tau=2.0, max_length=1 / 16, max_angle=0.2, cutoff=1e-3,
+                    root_tolerance=1e-9),
+    "fine": dict(tolerance=1e-3, max_tau=1.0, max_length=1 / 32, max_angle=0.1, cutoff=1e-4, root_tolerance=1e-9),
+    "reference": dict(tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0,
                       root_tolerance=1e-9),
 }
 PHASES = {"isotropic": ISOTROPIC, "hg": HG, "double_hg": DOUBLE_HG, "rayleigh": RAYLEIGH}
@@ -51,7 +57,7 @@ BAND_ROWS = 8
 @dataclass(frozen=True)
 class Quality:
     """The resolved quadrature settings of one render (all lengths in scene units)."""
-    nodes: int
+    tolerance: float
     max_tau: float
     max_length: float
     max_angle: float
@@ -63,7 +69,7 @@ def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
     preset = PRESETS[settings.quality]
     pick = lambda key: preset[key] if getattr(settings, key) is None else getattr(settings, key)  # noqa: E731
     max_length = preset["max_length"] * diagonal if settings.max_length is None else settings.max_length
-    return Quality(nodes=int(pick("nodes")), max_tau=float(pick("max_tau")), max_length=float(max_length),
+    return Quality(tolerance=float(pick("tolerance")), max_tau=float(pick("max_tau")), max_length=float(max_length),
                    max_angle=float(pick("max_angle")), cutoff=float(pick("cutoff")),
                    tol_t=float(pick("root_tolerance")) * diagonal)
 
@@ -222,17 +228,51 @@ def gauss_legendre(nodes):
 FINE_POINTS = 24
 
 
-def product_rule(nodes):
-    """Gauss-Legendre nodes on [0, 1], and their Lagrange basis sampled at a fine Gauss rule: what the
-    kernel needs to integrate e^-u times the interpolant of the light exactly (radiance._exp_weights)."""
-    x, _ = gauss_legendre(nodes)
-    y, w = gauss_legendre(FINE_POINTS)
-    lagrange = np.ones((nodes, FINE_POINTS))
-    for k in range(nodes):
-        for j in range(nodes):
+#: the Gauss-Kronrod pair G7-K15 on [-1, 1], the non-negative half (QUADPACK's qk15): the Kronrod nodes
+#: with the Gauss nodes at odd positions and 0
+_K15_HALF = np.array([0.991455371120812639206854697526329, 0.949107912342758524526189684047851,
+                      0.864864423359769072789712788640926, 0.741531185599394439863864773280788,
+                      0.586087235467691130294144845693013, 0.405845151377397166906606412076961,
+                      0.207784955007898467600689403773245, 0.0])
+_G7_WEIGHTS_HALF = np.array([0.129484966168869693270611432679082, 0.279705391489276667901467771423780,
+                             0.381830050505118944950369775488975, 0.417959183673469387755102040816327])
+
+
+def _lagrange_at(x, y):
+    """(len(x), len(y)): the Lagrange basis of the nodes x sampled at the points y."""
+    basis = np.ones((len(x), len(y)))
+    for k in range(len(x)):
+        for j in range(len(x)):
             if j != k:
-                lagrange[k] *= (y - x[j]) / (x[k] - x[j])
-    return x, lagrange, y, w
+                basis[k] *= (y - x[j]) / (x[k] - x[j])
+    return basis
+
+
+def legendre_tail(x, w):
+    """(2, n): maps values at the n Gauss nodes x (weights w, on [0, 1]) to the two highest Legendre
+    coefficients c_{n-2}, c_{n-1} of their interpolant; the Gauss rule's discrete orthogonality makes
+    c_j = (2j + 1) sum_k w_k f_k P_j(2 x_k - 1) exact for j < n."""
+    n = len(x)
+    return np.array([(2 * j + 1) * w * np.polynomial.legendre.Legendre.basis(j)(2.0 * x - 1.0)
+                     for j in (n - 2, n - 1)])
+
+
+def quadrature():
+    """The step rule of the in-scattering integral: 7 Gauss nodes, extended to the 15 Kronrod nodes where
+    the light is rough, with everything the kernel needs to weight e^-u times their interpolant exactly
+    (radiance._exp_weights). Returns (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col,
+    tail, fine_y, fine_w)."""
+    signed = np.concatenate([-_K15_HALF[:-1], _K15_HALF[::-1]])
+    kronrod_x = 0.5 * (1.0 + signed)                       # increasing on [0, 1]
+    is_gauss = np.zeros(15, bool)
+    is_gauss[[1, 3, 5, 7, 9, 11, 13]] = True               # every other node, from the second
+    gauss_col = np.flatnonzero(is_gauss).astype(np.int64)
+    kronrod_col = np.flatnonzero(~is_gauss).astype(np.int64)
+    gauss_x = kronrod_x[gauss_col]
+    gauss_w = 0.5 * np.concatenate([_G7_WEIGHTS_HALF, _G7_WEIGHTS_HALF[-2::-1]])
+    y, w = gauss_legendre(FINE_POINTS)
+    return (gauss_x, _lagrange_at(gauss_x, y), kronrod_x, _lagrange_at(kronrod_x, y), gauss_col, kronrod_col,
+            legendre_tail(gauss_x, gauss_w), y, w)
 
 
 def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
@@ -249,7 +289,7 @@ def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
         maps = build_shadow_maps(scene.lights, med, mlo, mhi, scene.render.shadow_map or SHADOW_MAP_RESOLUTION,
                                  q.tol_t)
     lights = pack_lights(scene.lights, maps)
-    quad = (*product_rule(q.nodes), q.max_tau, q.max_length, q.max_angle, q.cutoff, q.tol_t)
+    quad = (*quadrature(), q.max_tau, q.max_length, q.max_angle, q.cutoff, q.tol_t, q.tolerance)
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     fwd, right, up = camera_basis(scene.camera, w, h)
     # fresh writable copies: numba types read-only arrays apart, and a second type means a second compile

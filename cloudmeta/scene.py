@@ -104,7 +104,7 @@ class Surface:
 @dataclass(frozen=True)
 class RenderSettings:
     quality: str = "default"
-    nodes: int | None = None
+    tolerance: float | None = None  #: quadrature: J's estimated error per step, relative to its largest value
     max_tau: float | None = None
     max_length: float | None = None
     max_angle: float | None = None  #: radians, seen from a point light
@@ -490,7 +490,7 @@ def _render(top):
                               f"{DEFAULT_COLOURSPACE!r} or 'ACEScg', got {colourspace!r}")
     return RenderSettings(
         quality=n.choice("quality", QUALITIES, "default"),
-        nodes=n.integer("nodes", None, check=lambda v: 1 <= v <= 16, expect="an integer from 1 to 16"),
+        tolerance=n.number("tolerance", None, check=lambda v: 0 <= v < 1, expect="a number in [0, 1)"),
         max_tau=n.number("max_tau", None, **_POSITIVE),
         max_length=n.number("max_length", None, **_POSITIVE),
         max_angle=n.number("max_angle", None, check=lambda v: 0 < v <= 1.6, expect="an angle in (0, 1.6] radians"),

@@ -31,7 +31,7 @@ BASE = {
         ],
     }],
     "surfaces": [{"name": "hand", "color": [0.8, 0.6, 0.5], "balls": [{"center": [0, 0, -3], "radius": 1}]}],
-    "render": {"quality": "fine", "nodes": 8, "cutoff": 0.01, "shadows": "map", "shadow_map": 64},
+    "render": {"quality": "fine", "tolerance": 0.002, "cutoff": 0.01, "shadows": "map", "shadow_map": 64},
     "output": {"path": "out/cumulus.exr", "png": "cumulus.png", "exposure": -1.0},
 }
 
@@ -75,7 +75,7 @@ def test_01_full_scene_values(tmp_path):
     assert hand.name == "hand" and hand.blob.kernel == "wyvill6"
     np.testing.assert_array_equal(hand.color, [0.8, 0.6, 0.5])
 
-    assert s.render == RenderSettings(quality="fine", nodes=8, cutoff=0.01, shadows="map", shadow_map=64)
+    assert s.render == RenderSettings(quality="fine", tolerance=0.002, cutoff=0.01, shadows="map", shadow_map=64)
     assert s.output.path == os.path.join(str(tmp_path), "out", "cumulus.exr")
     assert s.output.png == os.path.join(str(tmp_path), "cumulus.png")
     assert s.output.exposure == -1.0
@@ -235,7 +235,7 @@ BAD_VALUES = [
     ("bad surface colour", ("surfaces", 0, "color"), "pink", "surfaces[0].color", "[r, g, b]"),
     ("unknown colourspace", ("render", "colourspace"), "Rec. 9999", "render.colourspace", "ACEScg"),
     ("render quality", ("render", "quality"), "best", "render.quality", "reference"),
-    ("render nodes 0", ("render", "nodes"), 0, "render.nodes", "an integer from 1 to 16"),
+    ("render tolerance 1", ("render", "tolerance"), 1, "render.tolerance", "a number in [0, 1)"),
     ("render max_tau 0", ("render", "max_tau"), 0, "render.max_tau", "> 0"),
     ("render max_length", ("render", "max_length"), -1, "render.max_length", "> 0"),
     ("render cutoff 1", ("render", "cutoff"), 1.0, "render.cutoff", "[0, 1)"),

@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results"
 PRESETS = ("draft", "default", "fine")
 #: tighter than ``reference``: used only to show that the reference has converged
-ULTRA = dict(quality="reference", nodes=12, max_tau=0.05, cutoff=0.0)
+ULTRA = dict(quality="reference", tolerance=1e-8, max_tau=0.05, cutoff=0.0)
 #: ULTRA's longest step, as a fraction of the scene's diagonal (reference: 1/128)
 ULTRA_LENGTH = 1 / 512
 

@@ -9,7 +9,7 @@ the median when everything lands on one side), which is O(N log N) and needs no 
 import numpy as np
 from numba import njit
 
-from ..config import NJIT
+from ..config import NJIT, NJIT_INLINE
 
 LEAF_SIZE = 4
 STACK = 64
@@ -101,34 +101,43 @@ def build_bvh(bounds, first_index):
     return node_box[:n_nodes].copy(), node_a[:n_nodes].copy(), node_b[:n_nodes].copy(), node_n[:n_nodes].copy(), items
 
 
-@njit(**NJIT)
-def ray_box(o, inv_d, box, tmin, tmax):
-    """Slab test: does the ray meet the box within [tmin, tmax]?"""
-    t0 = tmin
-    t1 = tmax
-    for c in range(3):
-        ta = (box[c] - o[c]) * inv_d[c]
-        tb = (box[3 + c] - o[c]) * inv_d[c]
-        if ta > tb:
-            ta, tb = tb, ta
-        if ta > t0:
-            t0 = ta
-        if tb < t1:
-            t1 = tb
-        if t0 > t1:
-            return False
-    return True
+@njit(**NJIT_INLINE)
+def _slab(o, inv, lo, hi, t0, t1):
+    """One axis of the slab test: the ray's [t0, t1] clipped to the slab [lo, hi] (a NaN bound, 0 * inf
+    for a ray in the slab's plane, clips nothing)."""
+    ta = (lo - o) * inv
+    tb = (hi - o) * inv
+    if ta > tb:
+        ta, tb = tb, ta
+    if ta > t0:
+        t0 = ta
+    if tb < t1:
+        t1 = tb
+    return t0, t1
+
+
+@njit(**NJIT_INLINE)
+def ray_box(ox, oy, oz, ix, iy, iz, node_box, k, tmin, tmax):
+    """Slab test: does the ray (origin o, inverse direction i) meet box k within [tmin, tmax]?"""
+    t0, t1 = _slab(ox, ix, node_box[k, 0], node_box[k, 3], tmin, tmax)
+    if t0 > t1:
+        return False
+    t0, t1 = _slab(oy, iy, node_box[k, 1], node_box[k, 4], t0, t1)
+    if t0 > t1:
+        return False
+    t0, t1 = _slab(oz, iz, node_box[k, 2], node_box[k, 5], t0, t1)
+    return t0 <= t1
 
 
 @njit(**NJIT)
 def bvh_candidates(o, d, tmin, tmax, root, node_box, node_a, node_b, node_n, items, stack, cand):
     """Ball indices whose boxes the ray meets within [tmin, tmax], into cand; returns their number."""
-    inv_d = np.empty(3)
-    for c in range(3):
-        inv_d[c] = 1.0 / d[c] if d[c] != 0.0 else np.inf
+    ox, oy, oz = o[0], o[1], o[2]
+    ix = 1.0 / d[0] if d[0] != 0.0 else np.inf
+    iy = 1.0 / d[1] if d[1] != 0.0 else np.inf
+    iz = 1.0 / d[2] if d[2] != 0.0 else np.inf
     n = 0
-    top = 0
-    if not ray_box(o, inv_d, node_box[root], tmin, tmax):
+    if not ray_box(ox, oy, oz, ix, iy, iz, node_box, root, tmin, tmax):
         return 0
     stack[0] = root
     top = 1
@@ -140,8 +149,12 @@ def bvh_candidates(o, d, tmin, tmax, root, node_box, node_a, node_b, node_n, ite
                 cand[n] = items[k]
                 n += 1
             continue
-        for child in (node_a[node], node_b[node]):
-            if ray_box(o, inv_d, node_box[child], tmin, tmax):
-                stack[top] = child
-                top += 1
+        left = node_a[node]
+        right = node_b[node]
+        if ray_box(ox, oy, oz, ix, iy, iz, node_box, left, tmin, tmax):
+            stack[top] = left
+            top += 1
+        if ray_box(ox, oy, oz, ix, iy, iz, node_box, right, tmin, tmax):
+            stack[top] = right
+            top += 1
     return n

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..config import NJIT
+from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF
 from .bvh import bvh_candidates
 from .sweep import DENSITY_EXCESS, DENSITY_UNIFORM, pieces_optical_depth, trace_blob
@@ -25,7 +25,7 @@ def alloc_ray_pieces(capacity, n_media):
             np.empty((2 * p, max(n_media, 1), NCOEF)))
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack):
     """Inside pieces of medium m on the ray (in scratch); returns (scratch, n_pieces)."""
     centers, frames, weights, start, kernel, threshold = med[0], med[1], med[2], med[3], med[4], med[5]

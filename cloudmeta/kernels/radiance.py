@@ -17,26 +17,32 @@ Three tuples carry the scene (see cloudmeta.render.PackedMedia.args for the orde
   lights = (kind, vec, rgb, map_of, <one shadowmap's arrays: geo, res, base, start, t0, t1, c, cum,
             reach>): kind 0 directional (vec towards the light, rgb irradiance), kind 1 point (vec its
             position, rgb intensity); map_of[l] is the light's shadow map, or -1 for exact shadow rays
-  quad   = (gl_x, lagrange, fine_y, fine_w, max_tau, max_length, max_angle, cutoff, tol_t): Gauss-Legendre
-           nodes on [0, 1], their Lagrange basis at a fine Gauss rule (fine_y, fine_w), and the settings
+  quad   = (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col, tail, fine_y, fine_w,
+            max_tau, max_length, max_angle, cutoff, tol_t, tolerance): the 7 Gauss and 15 Kronrod nodes on
+           [0, 1] with their Lagrange bases at a fine Gauss rule (fine_y, fine_w); where the Gauss nodes and
+           the other 8 sit among the 15; the map from J at the Gauss nodes to its two highest Legendre
+           coefficients; and the settings (cloudmeta.render.quadrature)
 """
 import math
 
 import numpy as np
 from numba import njit, prange
 
-from ..config import NJIT, NJIT_PARALLEL
+from ..config import NJIT, NJIT_INLINE, NJIT_PARALLEL
 from .bernstein import NCOEF, bernstein_cumulative, bernstein_eval, bernstein_mean, subdivide
 from .optics import phase
-from .bvh import STACK
+from .bvh import STACK, ray_box
 from .media import alloc_ray_pieces, collect_media, shadow_transmittance
 from .shadowmap import map_optical_depth
 from .sweep import advance_active, alloc_scratch, sort_breakpoints
 
 DIRECTIONAL = 0
 POINT = 1
-#: most Gauss nodes per step (the work rows are sized by it)
+#: most nodes per step (the work rows are sized by it)
 MAX_NODES = 16
+#: a step is halved at most this often where its Kronrod and Gauss results disagree (the pending halves
+#: fit the MAX_NODES slots of a work row)
+MAX_SPLITS = 6
 
 
 @njit(**NJIT)
@@ -113,7 +119,7 @@ def _angular_cuts(o, d, ta, tb, light_kind, light_vec, max_angle, tol_t):
     return best, t_c, h_best, th_a, d_th
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l_dir, light_buf):
     """Per light: light_buf[li, 0] = cos theta = l . d, light_buf[li, 1:4] = E_l T_l at pos."""
     light_kind, light_vec, light_rgb, map_of = lights[0], lights[1], lights[2], lights[3]
@@ -192,6 +198,44 @@ def _depth_at(t, k, n_el, rp):
     return el_u0[k] + w * bernstein_cumulative(el_S[k], s), k
 
 
+@njit(**NJIT_INLINE)
+def _source_at(u, k, k_b, s_prev, u_prev, o, d, med, lights, ambient, tol_t, u_stop, rp, scratch, cand, stack,
+               pos, l_dir, light_buf, j_val, col):
+    """j_val[:3, col] = J at optical depth u of the view ray: sum over media of (sigma_s / sigma_t) times
+    (sum over lights of phase E_l T_l, plus the ambient radiance). (k, s_prev, u_prev) locate the previous
+    node (nodes come in increasing u); returns them for this node, with the scratch."""
+    med_albedo, med_phase = med[8], med[9]
+    el_t0, el_t1, el_u0, el_S, el_sig = rp[7], rp[8], rp[9], rp[10], rp[11]
+    while k < k_b - 1 and el_u0[k + 1] <= u:
+        k += 1
+        s_prev = 0.0
+        u_prev = el_u0[k]
+    w = el_t1[k] - el_t0[k]
+    s = _depth_to_s(el_S[k], w, u - el_u0[k], s_prev, u_prev - el_u0[k])
+    for c in range(3):
+        j_val[c, col] = 0.0
+    sigma_t = bernstein_eval(el_S[k], s)
+    if sigma_t <= 0.0:
+        return k, s, u, scratch
+    t = el_t0[k] + s * w
+    for c in range(3):
+        pos[c] = o[c] + t * d[c]
+    scratch = _light_at_node(pos, d, med, lights, tol_t, u_stop, scratch, cand, stack, l_dir, light_buf)
+    for m in range(med_albedo.shape[0]):
+        if med_albedo[m] == 0.0:
+            continue
+        ratio = med_albedo[m] * bernstein_eval(el_sig[k, m], s) / sigma_t
+        if ratio == 0.0:
+            continue
+        for li in range(lights[0].shape[0]):
+            ph = phase(med_phase[m, 0], med_phase[m, 1], med_phase[m, 2], med_phase[m, 3], light_buf[li, 0])
+            for c in range(3):
+                j_val[c, col] += ratio * ph * light_buf[li, 1 + c]
+        for c in range(3):
+            j_val[c, col] += ratio * ambient[c]
+    return k, s, u, scratch
+
+
 @njit(**NJIT)
 def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand, stack, light_buf, out):
     """out[:3] = radiance of the camera ray o + t d, out[3] = its transmittance T(0, inf).
@@ -202,7 +246,8 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
     """
     med_albedo, med_phase = med[8], med[9]
     light_kind = lights[0]
-    gl_x, lagrange, fine_y, fine_w, max_tau, max_length, max_angle, cutoff, tol_t = quad
+    (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col, tail, fine_y, fine_w,
+     max_tau, max_length, max_angle, cutoff, tol_t, tolerance) = quad
     scratch, rp, n = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
     for c in range(3):
         out[c] = 0.0
@@ -217,6 +262,10 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
     n_lights = light_kind.shape[0]
     n_media = med_albedo.shape[0]
     node_w = light_buf[-4]       # the last rows of light_buf are this ray's small work vectors
+    j_val = light_buf[-7:-4]     # J (r, g, b) at the Kronrod nodes of a step, in order
+    split_u = light_buf[-9]      # the parts of a step still to do: where each starts, and how often halved
+    split_depth = light_buf[-8]
+    j_max = 0.0                  # the largest J (r + g + b) met on this ray: the scale of the tolerance
     pos = light_buf[-3, :3]
     l_dir = light_buf[-3, 3:6]
     has_ambient = ambient[0] > 0.0 or ambient[1] > 0.0 or ambient[2] > 0.0
@@ -254,46 +303,73 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
                 if sub_u <= 0.0:
                     continue
                 # in optical depth u: T sigma_s dt = e^-u (sigma_s / sigma_t) du, with weights exact for
-                # e^-u times a polynomial: the nodes follow only how the light varies
+                # e^-u times a polynomial: the nodes follow only how the light J varies. Each step takes
+                # 7 Gauss nodes; where the tail of their Legendre expansion says J is rougher than the
+                # tolerance allows, 8 Kronrod nodes join them (15, the 7 reused)
                 n_steps = max(1, int(math.ceil(max(sub_u / max_tau, (t_end - t_start) / max_length))))
                 h = sub_u / n_steps
-                _exp_weights(h, lagrange, fine_y, fine_w, node_w)
                 for st in range(n_steps):
-                    u_step = u_start + st * h
-                    if u_step >= u_stop:
-                        break  # the rest is seen through less than `cutoff`
-                    for g in range(gl_x.shape[0]):
-                        u = u_step + gl_x[g] * h
-                        while k < k_b - 1 and el_u0[k + 1] <= u:
-                            k += 1
-                            s_prev = 0.0
-                            u_prev = el_u0[k]
-                        w = el_t1[k] - el_t0[k]
-                        s = _depth_to_s(el_S[k], w, u - el_u0[k], s_prev, u_prev - el_u0[k])
-                        s_prev = s
-                        u_prev = u
-                        sigma_t = bernstein_eval(el_S[k], s)
-                        if sigma_t <= 0.0:
-                            continue
-                        t = el_t0[k] + s * w
-                        for c in range(3):
-                            pos[c] = o[c] + t * d[c]
-                        scratch = _light_at_node(pos, d, med, lights, tol_t, u_stop, scratch, cand, stack,
-                                                 l_dir, light_buf)
-                        weight = node_w[g] * math.exp(-u_step) / sigma_t
-                        for m in range(n_media):
-                            if med_albedo[m] == 0.0:
-                                continue
-                            sigma_s = med_albedo[m] * bernstein_eval(el_sig[k, m], s)
-                            if sigma_s == 0.0:
-                                continue
-                            for li in range(n_lights):
-                                ph = phase(med_phase[m, 0], med_phase[m, 1], med_phase[m, 2], med_phase[m, 3],
-                                           light_buf[li, 0])
+                    # the step, or the halves of a part whose Kronrod and Gauss results disagree, left
+                    # part first (the nodes must come in increasing u)
+                    split_u[0] = u_start + st * h
+                    split_depth[0] = 0.0
+                    top = 0
+                    while top >= 0:
+                        u_step = split_u[top]
+                        depth = int(split_depth[top])
+                        top -= 1
+                        if u_step >= u_stop:
+                            break  # the rest is seen through less than `cutoff`
+                        hh = h * 0.5 ** depth
+                        k_0, s_0, up_0 = k, s_prev, u_prev
+                        c_lo = 0.0
+                        c_hi = 0.0
+                        for g in range(gauss_x.shape[0]):
+                            col = gauss_col[g]
+                            k, s_prev, u_prev, scratch = _source_at(
+                                u_step + gauss_x[g] * hh, k, k_b, s_prev, u_prev, o, d, med, lights, ambient,
+                                tol_t, u_stop, rp, scratch, cand, stack, pos, l_dir, light_buf, j_val, col)
+                            j_sum = j_val[0, col] + j_val[1, col] + j_val[2, col]
+                            j_max = max(j_max, j_sum)
+                            c_lo += tail[0, g] * j_sum
+                            c_hi += tail[1, g] * j_sum
+                        _exp_weights(hh, gauss_lag, fine_y, fine_w, node_w)
+                        e0 = math.exp(-u_step)
+                        # J's error, weighted by e^-u, is then below tolerance * j_max: deep steps may be
+                        # rougher
+                        allowed = tolerance * j_max
+                        if (abs(c_lo) + abs(c_hi)) * e0 <= allowed:
+                            for g in range(gauss_x.shape[0]):
                                 for c in range(3):
-                                    out[c] += weight * sigma_s * ph * light_buf[li, 1 + c]
+                                    out[c] += e0 * node_w[g] * j_val[c, gauss_col[g]]
+                            continue
+                        i_gauss = 0.0
+                        for g in range(gauss_x.shape[0]):
+                            col = gauss_col[g]
+                            i_gauss += node_w[g] * (j_val[0, col] + j_val[1, col] + j_val[2, col])
+                        k, s_prev, u_prev = k_0, s_0, up_0  # the Kronrod nodes, again in increasing u
+                        for g in range(kronrod_col.shape[0]):
+                            col = kronrod_col[g]
+                            k, s_prev, u_prev, scratch = _source_at(
+                                u_step + kronrod_x[col] * hh, k, k_b, s_prev, u_prev, o, d, med, lights, ambient,
+                                tol_t, u_stop, rp, scratch, cand, stack, pos, l_dir, light_buf, j_val, col)
+                            j_max = max(j_max, j_val[0, col] + j_val[1, col] + j_val[2, col])
+                        # (the last Kronrod node is the part's last node: the search goes on from there)
+                        _exp_weights(hh, kronrod_lag, fine_y, fine_w, node_w)
+                        i_kronrod = 0.0
+                        for g in range(kronrod_x.shape[0]):
+                            i_kronrod += node_w[g] * (j_val[0, g] + j_val[1, g] + j_val[2, g])
+                        if abs(i_kronrod - i_gauss) * e0 > allowed * hh and depth < MAX_SPLITS:
+                            k, s_prev, u_prev = k_0, s_0, up_0
+                            split_u[top + 1] = u_step + 0.5 * hh
+                            split_depth[top + 1] = depth + 1.0
+                            split_u[top + 2] = u_step
+                            split_depth[top + 2] = depth + 1.0
+                            top += 2
+                            continue
+                        for g in range(kronrod_x.shape[0]):
                             for c in range(3):
-                                out[c] += weight * sigma_s * ambient[c]
+                                out[c] += e0 * node_w[g] * j_val[c, g]
             k_a = k_b
     t_view = math.exp(-u_total)
     for c in range(3):
@@ -321,7 +397,19 @@ def jitter(seed, pixel, sample, dim):
 def alloc_work(n_balls, n_lights):
     """Per-chunk work arrays of the image loop: candidate list, BVH stack, light buffer."""
     return (np.empty(max(n_balls, 1), np.int64), np.empty(2 * STACK, np.int64),
-            np.empty((n_lights + 4, max(NCOEF + 1, MAX_NODES))))
+            np.empty((n_lights + 9, max(NCOEF + 1, MAX_NODES))))
+
+
+@njit(**NJIT_INLINE)
+def misses_media(o, d, node_box, root):
+    """Whether the ray misses the root box of every medium's BVH."""
+    ix = 1.0 / d[0] if d[0] != 0.0 else np.inf
+    iy = 1.0 / d[1] if d[1] != 0.0 else np.inf
+    iz = 1.0 / d[2] if d[2] != 0.0 else np.inf
+    for m in range(root.shape[0]):
+        if ray_box(o[0], o[1], o[2], ix, iy, iz, node_box, root[m], 0.0, np.inf):
+            return False
+    return True
 
 
 @njit(**NJIT_PARALLEL)
@@ -362,8 +450,13 @@ def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_righ
                 norm = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
                 for c in range(3):
                     d[c] /= norm
-                scratch, rp = ray_radiance(cam_pos, d, med, lights, quad, background, ambient, scratch, rp,
-                                           cand, stack, light_buf, px_out)
+                if misses_media(cam_pos, d, med[10], med[15]):
+                    for c in range(3):
+                        px_out[c] = background[c]  # no medium on the ray: the background, at once
+                    px_out[3] = 1.0
+                else:
+                    scratch, rp = ray_radiance(cam_pos, d, med, lights, quad, background, ambient, scratch, rp,
+                                               cand, stack, light_buf, px_out)
                 acc0 += px_out[0]
                 acc1 += px_out[1]
                 acc2 += px_out[2]

@@ -14,7 +14,7 @@ concatenated (``base`` gives each map's first texel, ``start`` holds global piec
 import numpy as np
 from numba import njit, prange
 
-from ..config import NJIT, NJIT_PARALLEL
+from ..config import NJIT, NJIT_INLINE, NJIT_PARALLEL
 from .bernstein import NCOEF, bernstein_cumulative, bernstein_mean
 from .media import alloc_ray_pieces, collect_media
 from .sweep import alloc_scratch
@@ -113,7 +113,7 @@ def texel_optical_depth(s, a, b, t0, t1, c, cum, reach):
     return tau
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def map_optical_depth(x, geo, res, base, start, t0, t1, c, cum, reach):
     """Optical depth from x towards the light of one map: exact along texel rays, bilinear across them."""
     px = x[0] - geo[0]
