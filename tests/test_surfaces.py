@@ -388,6 +388,18 @@ def test_camera_inside_a_hollow_shell_sees_the_inner_wall(tmp_path):
     assert np.all(img[..., 3] == 1.0)
 
 
+def test_a_carved_medium_is_seen_through_its_hole(tmp_path):
+    """The hollow shell as a uniform medium: the view ray through the centre crosses 2 (r_out - r_in) of it."""
+    sigma = 0.9
+    balls = [{"center": [0.0, 0.0, 0.0], "radius": 2.0, "weight": 1.0},
+             {"center": [0.0, 0.0, 0.0], "radius": 1.0, "weight": -1.0}]
+    s = make_scene(tmp_path, media=[{"kernel": "murakami4", "threshold": SHELL_T, "balls": balls, "albedo": 0.0,
+                                     "density": {"mode": "uniform", "scale": sigma}}], background=[1, 1, 1])
+    expected = math.exp(-2 * sigma * (SHELL_R_OUT - SHELL_R_IN))
+    img = render(s, progress=False)
+    np.testing.assert_allclose(img[0, 0], [expected] * 3 + [1 - expected], rtol=1e-6)
+
+
 def test_camera_inside_a_surface(tmp_path):
     """Depth 0, alpha 1, no media; the lights are shut out (the shadow ray starts inside), ambient remains."""
     colour, amb = np.array([0.8, 0.6, 0.5]), np.array([0.1, 0.2, 0.3])
