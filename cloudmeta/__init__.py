@@ -2,17 +2,17 @@
 
 The public API:
 
-- ``Blob``: metaballs with one kernel and threshold; ``field``, ``roots``, ``segments``, ``optical_depth``:
-  the exact ray engine, vectorised over rays.
+- ``Blob``: metaballs with one kernel and threshold; ``roots``, ``segments``, ``optical_depth``,
+  ``first_hit``: the exact ray engine, vectorised over rays; ``field``, ``gradient``, ``normal`` at points.
 - ``load_scene``, ``render``, ``write_exr``, ``read_exr``, ``write_png``: YAML scene to image.
 """
 from .blob import Blob
-from .engine import field, optical_depth, roots, segments
+from .engine import field, first_hit, gradient, normal, optical_depth, roots, segments
 from .errors import CloudmetaError, InputError, SceneError
 from .io import read_exr, write_exr, write_png
 from .render import render
 from .scene import load_scene
 
-__all__ = ["Blob", "field", "optical_depth", "roots", "segments", "load_scene", "render", "write_exr",
-           "read_exr", "write_png", "CloudmetaError", "InputError", "SceneError"]
+__all__ = ["Blob", "field", "first_hit", "gradient", "normal", "optical_depth", "roots", "segments", "load_scene",
+           "render", "write_exr", "read_exr", "write_png", "CloudmetaError", "InputError", "SceneError"]
 __version__ = "0.1.0"

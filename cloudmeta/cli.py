@@ -22,7 +22,8 @@ def _render(args):
     png = args.png or scene.output.png
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     print(f"cloudmeta: rendering {args.scene}: {w} x {h}, {spp} spp, quality {scene.render.quality}, "
-          f"{sum(len(m.blob) for m in scene.media)} balls in {len(scene.media)} media, {len(scene.lights)} lights")
+          f"{sum(len(m.blob) for m in scene.media)} balls in {len(scene.media)} media, "
+          f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights")
     start = time.perf_counter()
     image = render(scene, progress=not args.quiet)
     took = time.perf_counter() - start

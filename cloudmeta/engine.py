@@ -1,4 +1,5 @@
-"""The exact ray-metaball engine, vectorised over rays: roots, inside segments, optical depth, field.
+"""The exact ray-metaball engine, vectorised over rays: roots, inside segments, optical depth, the first
+hit of an opaque surface; and the field, its gradient and the surface normal at points.
 
 Each function validates its input once, normalises the ray directions (t is arc length) and calls one
 parallel numba kernel.
@@ -11,7 +12,7 @@ import numpy as np
 from .blob import Blob
 from .errors import InputError
 from .kernels.sweep import DENSITY_EXCESS, DENSITY_FIELD, DENSITY_UNIFORM
-from .kernels.trace import field_at, trace_rays
+from .kernels.trace import field_at, first_hits, gradient_at, trace_rays
 
 #: default root tolerance, relative to the blob's bounding-box diagonal (MODEL.md §3)
 ROOT_TOLERANCE = 1e-9
@@ -74,12 +75,17 @@ def n_chunks(n_items):
     return max(1, min(n_items, 8 * numba.get_num_threads()))
 
 
-def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1.0, cap=16, lists=True):
-    """tau (N,), and with ``lists`` the per-ray roots and segments (Python lists of arrays: costly for
-    millions of rays, so optical_depth skips them)."""
+def check_traceable(blob):
     blob = check_blob(blob)
     if blob.kernel not in TRACEABLE_KERNELS:
         raise InputError(f"kernel: ray tracing supports {', '.join(TRACEABLE_KERNELS)} so far, got {blob.kernel!r}")
+    return blob
+
+
+def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1.0, cap=16, lists=True):
+    """tau (N,), and with ``lists`` the per-ray roots and segments (Python lists of arrays: costly for
+    millions of rays, so optical_depth skips them)."""
+    blob = check_traceable(blob)
     if density not in DENSITY_MODES:
         raise InputError(f"density: expected one of {', '.join(DENSITY_MODES)}, got {density!r}")
     if not (np.isfinite(scale) and scale >= 0):
@@ -137,3 +143,34 @@ def field(blob, points):
     out = np.empty(len(p))
     field_at(p, blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, out)
     return out
+
+
+def first_hit(blob, origins, directions, t_max=np.inf, tolerance=ROOT_TOLERANCE):
+    """(N,) t where each ray first meets the blob drawn as an opaque surface (MODEL.md §6): the first
+    root where F rises through T, 0 where the origin is inside (F >= T), inf where the ray misses it
+    within [0, t_max]. Only the first root is searched for, so this is cheaper than ``roots``."""
+    blob = check_traceable(blob)
+    o, d, tm = prepare_rays(origins, directions, t_max)
+    out = np.empty(len(o))
+    first_hits(o, d, tm, blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, blob.threshold,
+               root_tolerance(blob, tolerance), blob.bvh, n_chunks(len(o)), out)
+    return out
+
+
+def gradient(blob, points):
+    """(N, 3) grad F(x) at the points, analytic: sum_i q_i k'(u_i) grad u_i (0 outside every support;
+    ``blinn``'s jump at u = 1 contributes nothing)."""
+    blob = check_blob(blob)
+    p = np.array(_points("points", points))
+    out = np.empty((len(p), 3))
+    gradient_at(p, blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, out)
+    return out
+
+
+def normal(blob, points):
+    """(N, 3) the outward unit normal of the isosurface through each point, -grad F / |grad F| (MODEL.md
+    §6: F decreases outwards); nan where the gradient vanishes."""
+    g = gradient(blob, points)
+    length = np.linalg.norm(g, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(length > 0, -g / length, np.nan)

@@ -22,6 +22,12 @@ of J on them exceed the tolerance, the 8 Kronrod nodes join (G7-K15), and where 
 disagree by more than the tolerance allows the step is halved (at most 6 times). The optical depth, the
 view transmittance and the shadow transmittance are exact at every setting; the settings only trade the
 quadrature of the in-scattering integral against time.
+
+Opaque surfaces (``surfaces:``, MODEL.md §6) are exact at every setting too: the first root of each
+surface's field along the camera ray, the analytic normal, and shadow rays that stop at the first surface
+they meet. With ``shadows: map`` the maps hold the media only; surfaces still block every shadow ray
+exactly (a first-root test per node and light), so their shadows are as sharp as with ``exact``. A surface
+seen through less than ``cutoff`` of view transmittance is not shaded (like the media behind it).
 """
 from __future__ import annotations
 
@@ -33,7 +39,6 @@ import numba
 import numpy as np
 
 from .engine import DENSITY_MODES, n_chunks
-from .errors import CloudmetaError
 from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
 from .kernels.radiance import DIRECTIONAL, MAX_NODES, POINT, render_rows
 from .kernels.shadowmap import trace_texels
@@ -113,26 +118,57 @@ def merge_bvhs(blobs, starts):
     return (*cat, np.array(roots, np.int64))
 
 
-def pack_media(media) -> PackedMedia:
-    blobs = [m.blob for m in media]
+@dataclass(frozen=True)
+class PackedSurfaces:
+    """Every surface's balls in one set of arrays, with per-surface parameters (what the kernels read)."""
+    centers: np.ndarray
+    frames: np.ndarray
+    weights: np.ndarray
+    start: np.ndarray       # (S + 1,) ball offsets
+    kernel: np.ndarray
+    threshold: np.ndarray
+    blobbiness: np.ndarray
+    colour: np.ndarray      # (S, 3) linear RGB
+    bvh: tuple              # node_box, node_a, node_b, node_n, items of all surfaces; root (S,) per surface
+
+    def args(self):
+        """The ``surf`` tuple of cloudmeta.kernels.surfaces."""
+        return (self.centers, self.frames, self.weights, self.start, self.kernel, self.threshold,
+                self.blobbiness, self.colour, *self.bvh)
+
+
+def _pack_blobs(blobs):
+    """The arrays every packing shares: balls concatenated, ball offsets, per-blob kernel, threshold,
+    blobbiness, and the merged BVH. Fresh contiguous arrays, also when there are no blobs (numba then
+    sees the same types and compiles once)."""
     counts = [len(b) for b in blobs]
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    cat = lambda attr, empty: (np.ascontiguousarray(np.concatenate([getattr(b, attr) for b in blobs]))  # noqa: E731
+                               if blobs else empty)
+    return dict(centers=cat("centers", np.zeros((0, 3))), frames=cat("frames", np.zeros((0, 3, 3))),
+                weights=cat("weights", np.zeros(0)), start=start,
+                kernel=np.array([b.kernel_id for b in blobs], np.int64),
+                threshold=np.array([b.threshold for b in blobs], np.float64),
+                blobbiness=np.array([b.blobbiness for b in blobs], np.float64),
+                bvh=merge_bvhs(blobs, start[:-1]))
+
+
+def pack_media(media) -> PackedMedia:
     phase = np.zeros((len(media), 4))
     for i, m in enumerate(media):
         p = m.phase
         g1 = p.g if p.type == "hg" else p.g1
         phase[i] = (PHASES[p.type], g1, p.g2, p.w)
-    cat = lambda attr, empty: (np.ascontiguousarray(np.concatenate([getattr(b, attr) for b in blobs]))  # noqa: E731
-                               if blobs else empty)
     return PackedMedia(
-        centers=cat("centers", np.zeros((0, 3))), frames=cat("frames", np.zeros((0, 3, 3))),
-        weights=cat("weights", np.zeros(0)), start=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
-        kernel=np.array([b.kernel_id for b in blobs], np.int64),
-        threshold=np.array([b.threshold for b in blobs], np.float64),
+        **_pack_blobs([m.blob for m in media]),
         mode=np.array([DENSITY_MODES[m.density.mode] for m in media], np.int64),
         scale=np.array([m.density.scale for m in media], np.float64),
-        albedo=np.array([m.albedo for m in media], np.float64), phase=phase,
-        bvh=merge_bvhs(blobs, np.concatenate([[0], np.cumsum(counts)])[:-1]),
-        blobbiness=np.array([b.blobbiness for b in blobs], np.float64))
+        albedo=np.array([m.albedo for m in media], np.float64), phase=phase)
+
+
+def pack_surfaces(surfaces) -> PackedSurfaces:
+    return PackedSurfaces(**_pack_blobs([s.blob for s in surfaces]),
+                          colour=np.array([s.color for s in surfaces], np.float64).reshape(-1, 3))
 
 
 def pack_lights(lights, maps=None):
@@ -275,14 +311,17 @@ def quadrature():
             legendre_tail(gauss_x, gauss_w), y, w)
 
 
-def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
-    """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha."""
-    if scene.surfaces:
-        raise CloudmetaError("opaque surfaces are not rendered yet (surfaces: is reserved for them)")
+def render(scene: Scene, progress=True, seed=0, depth=False):
+    """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha.
+
+    With ``depth=True`` returns (image, depth): depth (H x W, float64) is, per pixel, the distance along
+    the camera ray to the nearest surface hit among its samples (inf where no sample meets a surface).
+    """
     lo, hi = scene.bbox()
     q = resolve_quality(scene.render, float(np.linalg.norm(hi - lo)))
     media = pack_media(scene.media)
     med = media.args()
+    surf = pack_surfaces(scene.surfaces).args()
     maps = None
     if scene.render.shadows == "map" and scene.media:
         mlo, mhi = _media_bbox(scene)
@@ -297,13 +336,16 @@ def render(scene: Scene, progress=True, seed=0) -> np.ndarray:
     background = np.array(scene.background, np.float64)
     position = np.array(scene.camera.position, np.float64)
     image = np.zeros((h, w, 4), np.float64)
+    nearest = np.full((h, w), np.inf)
     bar = _progress(h, progress)
     for row0 in range(0, h, BAND_ROWS):
         row1 = min(h, row0 + BAND_ROWS)
         render_rows(row0, row1, w, h, spp, seed, position, fwd, right, up,
-                    n_chunks((row1 - row0) * w), med, lights, quad, background, ambient, image)
+                    n_chunks((row1 - row0) * w), med, surf, lights, quad, background, ambient, image, nearest)
         bar.update(row1 - row0)
     bar.close()
+    if depth:
+        return image.astype(np.float32), nearest
     return image.astype(np.float32)
 
 

@@ -191,3 +191,29 @@ def hull_crossing(c):
             if c[i] * c[j] < 0:
                 xs.append((i + (j - i) * c[i] / (c[i] - c[j])) / n)
     return (min(xs), max(xs)) if xs else None
+
+
+
+def first_hit(field, threshold, origins, directions, t0, t1, step):
+    """Per ray, the first t in [t0, t1] where field(o + t d) >= threshold, by brute force: samples every
+    ``step``, then bisection (60 halvings, to the spacing of doubles) between the last sample outside
+    and the first inside; inf where no sample is inside. ``field`` maps (N, 3) points to (N,) values. An
+    inside part shorter than ``step`` can be stepped over: use a step far below the features of the field."""
+    o = np.asarray(origins, float)
+    d = np.asarray(directions, float)
+    d = d / np.linalg.norm(d, axis=1)[:, None]
+    ts = np.linspace(t0, t1, int(math.ceil((t1 - t0) / step)) + 1)
+    lo = np.full(len(o), np.nan)
+    hi = np.full(len(o), np.inf)
+    for r in range(len(o)):
+        inside = field(o[r] + ts[:, None] * d[r]) >= threshold
+        k = int(np.argmax(inside))
+        if inside[k]:
+            lo[r], hi[r] = ts[max(k - 1, 0)], ts[k]
+    bracket = np.flatnonzero(np.isfinite(hi) & (hi > lo))
+    for _ in range(60):
+        mid = 0.5 * (lo[bracket] + hi[bracket])
+        inside = field(o[bracket] + mid[:, None] * d[bracket]) >= threshold
+        hi[bracket] = np.where(inside, mid, hi[bracket])
+        lo[bracket] = np.where(inside, lo[bracket], mid)
+    return hi

@@ -158,3 +158,31 @@ def bvh_candidates(o, d, tmin, tmax, root, node_box, node_a, node_b, node_n, ite
             stack[top] = right
             top += 1
     return n
+
+
+@njit(**NJIT)
+def _box_holds(box, x):
+    return (box[0] <= x[0] <= box[3]) and (box[1] <= x[1] <= box[4]) and (box[2] <= x[2] <= box[5])
+
+
+@njit(**NJIT)
+def bvh_point_candidates(x, root, node_box, node_a, node_b, node_n, items, stack, cand):
+    """Ball indices whose boxes hold the point x, into cand; returns their number."""
+    if not _box_holds(node_box[root], x):
+        return 0
+    n = 0
+    stack[0] = root
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        if node_n[node] > 0:
+            for k in range(node_a[node], node_a[node] + node_n[node]):
+                cand[n] = items[k]
+                n += 1
+            continue
+        for child in (node_a[node], node_b[node]):
+            if _box_holds(node_box[child], x):
+                stack[top] = child
+                top += 1
+    return n

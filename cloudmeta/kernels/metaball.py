@@ -1,4 +1,4 @@
-"""One metaball on a ray: its chord, its Bernstein control values, and its falloff at a point.
+"""One metaball on a ray: its chord, its Bernstein control values, and its falloff and gradient at a point.
 
 MODEL.md §1-2. A ball is a centre c and a frame M = S^-1 Q^T with u(x) = |M (x - c)|^2.
 
@@ -153,6 +153,41 @@ def falloff(kernel, u, blobbiness):
         v = 1.0 - math.sqrt(u)
         return 1.5 * v * v
     return math.exp(-blobbiness * u)
+
+
+@njit(**NJIT)
+def falloff_slope(kernel, u, blobbiness):
+    """k'(u) for u < 1 (0 for u >= 1; blinn's jump at u = 1 has no slope to give)."""
+    if u >= 1.0:
+        return 0.0
+    if kernel == WYVILL6:  # d/du (1-u)^2 (1 - 4u/9) = -(1-u) (22/9 - 12/9 u)
+        return -(1.0 - u) * (22.0 - 12.0 * u) / 9.0
+    if kernel == MURAKAMI4:
+        return -2.0 * (1.0 - u)
+    if kernel == NISHIMURA:
+        if u <= 1.0 / 9.0:
+            return -3.0
+        r = math.sqrt(u)
+        return -1.5 * (1.0 - r) / r
+    return -blobbiness * math.exp(-blobbiness * u)
+
+
+@njit(**NJIT)
+def ball_gradient(x, center, frame, q, kernel, blobbiness):
+    """grad of q k(u(x)): q k'(u) grad u, grad u = 2 M^T M (x - c). Returns its three components."""
+    ox = x[0] - center[0]
+    oy = x[1] - center[1]
+    oz = x[2] - center[2]
+    px = frame[0, 0] * ox + frame[0, 1] * oy + frame[0, 2] * oz
+    py = frame[1, 0] * ox + frame[1, 1] * oy + frame[1, 2] * oz
+    pz = frame[2, 0] * ox + frame[2, 1] * oy + frame[2, 2] * oz
+    u = px * px + py * py + pz * pz
+    if u >= 1.0:
+        return 0.0, 0.0, 0.0
+    f = 2.0 * q * falloff_slope(kernel, u, blobbiness)
+    return (f * (frame[0, 0] * px + frame[1, 0] * py + frame[2, 0] * pz),
+            f * (frame[0, 1] * px + frame[1, 1] * py + frame[2, 1] * pz),
+            f * (frame[0, 2] * px + frame[1, 2] * py + frame[2, 2] * pz))
 
 
 @njit(**NJIT)

@@ -1,4 +1,4 @@
-"""Single scattering along camera rays (MODEL.md §5), and the image loop.
+"""Single scattering along camera rays (MODEL.md §5), opaque surfaces on them (§6), and the image loop.
 
 A camera ray is traced through every medium by the engine; each inside piece carries sigma_t as a
 Bernstein polynomial. Where pieces of several media overlap, the ray is cut into elementary intervals
@@ -11,12 +11,21 @@ and their polynomials are added, exactly as the engine composites balls. On each
   exact shadow ray from every node to every light; near point lights the interval is first cut at equal
   angles (at most ``max_angle``) seen from the light, which tames their 1/r^2.
 
-Three tuples carry the scene (see cloudmeta.render.PackedMedia.args for the order):
+With opaque surfaces, the camera ray first finds its first surface hit t_hit (kernels.surfaces); the
+media are traced over [0, t_hit] only, and the hit, shaded as Lambertian, takes the background's place:
+L = L_surface T(0, t_hit) + in-scattering over [0, t_hit], alpha 1. Shadow rays, from quadrature nodes
+and from surface points, are blocked by any surface (T_l = 0), and then trace no media. A scene without
+surfaces traces nothing more than before: every surface loop runs over zero surfaces.
+
+Four tuples carry the scene (see cloudmeta.render.PackedMedia.args for the order):
   med    = (centers, frames, weights, start, kernel, threshold, mode, scale, albedo, phase,
             node_box, node_a, node_b, node_n, items, root, blobbiness) -- every medium's balls, its BVH
+  surf   = (centers, frames, weights, start, kernel, threshold, blobbiness, colour,
+            node_box, node_a, node_b, node_n, items, root) -- every surface's (cloudmeta.render.PackedSurfaces)
   lights = (kind, vec, rgb, map_of, <one shadowmap's arrays: geo, res, base, start, t0, t1, c, cum,
             reach>): kind 0 directional (vec towards the light, rgb irradiance), kind 1 point (vec its
-            position, rgb intensity); map_of[l] is the light's shadow map, or -1 for exact shadow rays
+            position, rgb intensity); map_of[l] is the light's shadow map (media only: surfaces are
+            always tested by an exact shadow ray), or -1 for exact shadow rays
   quad   = (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col, tail, fine_y, fine_w,
             max_tau, max_length, max_angle, cutoff, tol_t, tolerance): the 7 Gauss and 15 Kronrod nodes on
            [0, 1] with their Lagrange bases at a fine Gauss rule (fine_y, fine_w); where the Gauss nodes and
@@ -34,6 +43,7 @@ from .optics import phase
 from .bvh import STACK, ray_box
 from .media import alloc_ray_pieces, collect_media, shadow_transmittance
 from .shadowmap import map_optical_depth
+from .surfaces import SHADOW_OFFSET, first_surface_hit, n_surfaces, surface_normal, surfaces_block
 from .sweep import advance_active, alloc_scratch, sort_breakpoints
 
 DIRECTIONAL = 0
@@ -119,9 +129,15 @@ def _angular_cuts(o, d, ta, tb, light_kind, light_vec, max_angle, tol_t):
     return best, t_c, h_best, th_a, d_th
 
 
+#: inlined: a call per quadrature node would count references to every array of med, surf and lights
 @njit(**NJIT_INLINE)
-def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l_dir, light_buf):
-    """Per light: light_buf[li, 0] = cos theta = l . d, light_buf[li, 1:4] = E_l T_l at pos."""
+def _light_at_node(pos, shadow_from, v, med, surf, lights, tol_t, tau_stop, facing_only, scratch, cand, stack,
+                   l_dir, light_buf):
+    """Per light: light_buf[li, 0] = l . v, light_buf[li, 1:4] = E_l T_l at pos. v is the view direction
+    at a medium's node (l . v = cos theta of the phase function), the normal at a surface point; with
+    facing_only, lights with l . v <= 0 get E_l T_l = 0 and no shadow ray (they cannot light the side of
+    a surface facing away). The shadow ray starts at shadow_from (pos, or a surface point lifted off its
+    surface) and runs along l."""
     light_kind, light_vec, light_rgb, map_of = lights[0], lights[1], lights[2], lights[3]
     geo, res, base, start, t0, t1, c_map, cum, reach = (lights[4], lights[5], lights[6], lights[7], lights[8],
                                                         lights[9], lights[10], lights[11], lights[12])
@@ -139,12 +155,24 @@ def _light_at_node(pos, d, med, lights, tol_t, tau_stop, scratch, cand, stack, l
             for c in range(3):
                 l_dir[c] /= l_max
             e_scale = 1.0 / dist2
-        light_buf[li, 0] = l_dir[0] * d[0] + l_dir[1] * d[1] + l_dir[2] * d[2]
+        cos_lv = l_dir[0] * v[0] + l_dir[1] * v[1] + l_dir[2] * v[2]
+        light_buf[li, 0] = cos_lv
+        if facing_only and cos_lv <= 0.0:
+            for c in range(3):
+                light_buf[li, 1 + c] = 0.0
+            continue
+        blocked = False
+        if n_surfaces(surf) > 0:
+            scratch, blocked = surfaces_block(shadow_from, l_dir, l_max, surf, tol_t, scratch, cand, stack)
         mi = map_of[li]
-        if mi >= 0:
-            t_l = math.exp(-map_optical_depth(pos, geo[mi], res[mi], base[mi], start, t0, t1, c_map, cum, reach))
+        if blocked:
+            t_l = 0.0
+        elif mi >= 0:
+            t_l = math.exp(-map_optical_depth(shadow_from, geo[mi], res[mi], base[mi], start, t0, t1, c_map, cum,
+                                              reach))
         else:
-            scratch, t_l = shadow_transmittance(pos, l_dir, l_max, med, tol_t, tau_stop, scratch, cand, stack)
+            scratch, t_l = shadow_transmittance(shadow_from, l_dir, l_max, med, tol_t, tau_stop, scratch, cand,
+                                                stack)
         for c in range(3):
             light_buf[li, 1 + c] = light_rgb[li, c] * e_scale * t_l
     return scratch
@@ -199,7 +227,7 @@ def _depth_at(t, k, n_el, rp):
 
 
 @njit(**NJIT_INLINE)
-def _source_at(u, k, k_b, s_prev, u_prev, o, d, med, lights, ambient, tol_t, u_stop, rp, scratch, cand, stack,
+def _source_at(u, k, k_b, s_prev, u_prev, o, d, med, surf, lights, ambient, tol_t, u_stop, rp, scratch, cand, stack,
                pos, l_dir, light_buf, j_val, col):
     """j_val[:3, col] = J at optical depth u of the view ray: sum over media of (sigma_s / sigma_t) times
     (sum over lights of phase E_l T_l, plus the ambient radiance). (k, s_prev, u_prev) locate the previous
@@ -220,7 +248,8 @@ def _source_at(u, k, k_b, s_prev, u_prev, o, d, med, lights, ambient, tol_t, u_s
     t = el_t0[k] + s * w
     for c in range(3):
         pos[c] = o[c] + t * d[c]
-    scratch = _light_at_node(pos, d, med, lights, tol_t, u_stop, scratch, cand, stack, l_dir, light_buf)
+    scratch = _light_at_node(pos, pos, d, med, surf, lights, tol_t, u_stop, False, scratch, cand, stack, l_dir,
+                             light_buf)
     for m in range(med_albedo.shape[0]):
         if med_albedo[m] == 0.0:
             continue
@@ -237,8 +266,61 @@ def _source_at(u, k, k_b, s_prev, u_prev, o, d, med, lights, ambient, tol_t, u_s
 
 
 @njit(**NJIT)
-def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand, stack, light_buf, out):
-    """out[:3] = radiance of the camera ray o + t d, out[3] = its transmittance T(0, inf).
+def _shade_surface(o, d, t_hit, s, med, surf, lights, ambient, tol_t, tau_stop, scratch, cand, stack,
+                   light_buf):
+    """Lambertian radiance of surface s hit at o + t_hit d (MODEL.md §6):
+    colour / pi * sum_lights max(0, n . l) E_l T_l + colour * L_amb. Returns (scratch, r, g, b)."""
+    x = light_buf[-2, 0:3]
+    nrm = light_buf[-2, 3:6]
+    x_off = light_buf[-2, 6:9]
+    l_dir = light_buf[-3, 3:6]
+    for c in range(3):
+        x[c] = o[c] + t_hit * d[c]
+    surface_normal(x, d, surf, s, cand, stack, nrm)
+    for c in range(3):
+        x_off[c] = x[c] + SHADOW_OFFSET * tol_t * nrm[c]
+    scratch = _light_at_node(x, x_off, nrm, med, surf, lights, tol_t, tau_stop, True, scratch, cand, stack, l_dir,
+                             light_buf)
+    e0 = 0.0
+    e1 = 0.0
+    e2 = 0.0
+    for li in range(lights[0].shape[0]):
+        cos_nl = light_buf[li, 0]
+        if cos_nl > 0.0:
+            e0 += cos_nl * light_buf[li, 1]
+            e1 += cos_nl * light_buf[li, 2]
+            e2 += cos_nl * light_buf[li, 3]
+    colour = surf[7][s]
+    return (scratch, colour[0] * (e0 / math.pi + ambient[0]), colour[1] * (e1 / math.pi + ambient[1]),
+            colour[2] * (e2 / math.pi + ambient[2]))
+
+
+@njit(**NJIT)
+def _add_ray_end(o, d, t_hit, s_hit, u_total, u_stop, med, surf, lights, background, ambient, tol_t, scratch,
+                 cand, stack, light_buf, out):
+    """out[:3] += L_end T(0, t_end): the background for an escaping ray, the shaded surface for a hit
+    (not shaded where it is seen through less than ``cutoff``). out[3] = T(0, t_end), 0 for a hit (alpha 1).
+    Returns scratch."""
+    t_view = math.exp(-u_total)
+    if s_hit < 0:
+        for c in range(3):
+            out[c] += background[c] * t_view
+        out[3] = t_view
+        return scratch
+    out[3] = 0.0
+    if u_total < u_stop:
+        scratch, r, g, b = _shade_surface(o, d, t_hit, s_hit, med, surf, lights, ambient, tol_t, u_stop, scratch,
+                                          cand, stack, light_buf)
+        out[0] += r * t_view
+        out[1] += g * t_view
+        out[2] += b * t_view
+    return scratch
+
+
+@njit(**NJIT)
+def ray_radiance(o, d, med, surf, lights, quad, background, ambient, scratch, rp, cand, stack, light_buf, out):
+    """out[:3] = radiance of the camera ray o + t d, out[3] = its transmittance T(0, t_end) (0 where it
+    meets a surface), out[4] = t_hit, where it first meets a surface (inf if it does not).
 
     The ray's sigma_t is tabulated on elementary intervals (exact optical depth at any t); the quadrature
     then runs over each inside segment (a run of adjacent intervals) as a whole, so that chord ends,
@@ -248,13 +330,20 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
     light_kind = lights[0]
     (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col, tail, fine_y, fine_w,
      max_tau, max_length, max_angle, cutoff, tol_t, tolerance) = quad
-    scratch, rp, n = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
+    u_stop = -math.log(cutoff) if cutoff > 0.0 else np.inf
+    t_hit = np.inf
+    s_hit = -1
+    if n_surfaces(surf) > 0:
+        scratch, t_hit, s_hit = first_surface_hit(o, d, surf, tol_t, scratch, cand, stack)
+    n = 0
+    if t_hit > 0.0:  # a camera inside a surface sees no media
+        scratch, rp, n = collect_media(o, d, t_hit, med, tol_t, scratch, rp, cand, stack)
     for c in range(3):
         out[c] = 0.0
+    out[4] = t_hit
     if n == 0:
-        for c in range(3):
-            out[c] = background[c]
-        out[3] = 1.0
+        scratch = _add_ray_end(o, d, t_hit, s_hit, 0.0, u_stop, med, surf, lights, background, ambient, tol_t,
+                               scratch, cand, stack, light_buf, out)
         return scratch, rp
     n_el = elementary_intervals(n, rp)
     el_t0, el_t1, el_u0, el_S, el_sig = rp[7], rp[8], rp[9], rp[10], rp[11]
@@ -272,7 +361,6 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
     scatters = False
     for m in range(n_media):
         scatters = scatters or med_albedo[m] > 0.0
-    u_stop = -math.log(cutoff) if cutoff > 0.0 else np.inf
     if (n_lights > 0 or has_ambient) and scatters:
         k_a = 0
         while k_a < n_el and el_u0[k_a] < u_stop:
@@ -327,8 +415,8 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
                         for g in range(gauss_x.shape[0]):
                             col = gauss_col[g]
                             k, s_prev, u_prev, scratch = _source_at(
-                                u_step + gauss_x[g] * hh, k, k_b, s_prev, u_prev, o, d, med, lights, ambient,
-                                tol_t, u_stop, rp, scratch, cand, stack, pos, l_dir, light_buf, j_val, col)
+                                u_step + gauss_x[g] * hh, k, k_b, s_prev, u_prev, o, d, med, surf, lights,
+                                ambient, tol_t, u_stop, rp, scratch, cand, stack, pos, l_dir, light_buf, j_val, col)
                             j_sum = j_val[0, col] + j_val[1, col] + j_val[2, col]
                             j_max = max(j_max, j_sum)
                             c_lo += tail[0, g] * j_sum
@@ -351,8 +439,8 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
                         for g in range(kronrod_col.shape[0]):
                             col = kronrod_col[g]
                             k, s_prev, u_prev, scratch = _source_at(
-                                u_step + kronrod_x[col] * hh, k, k_b, s_prev, u_prev, o, d, med, lights, ambient,
-                                tol_t, u_stop, rp, scratch, cand, stack, pos, l_dir, light_buf, j_val, col)
+                                u_step + kronrod_x[col] * hh, k, k_b, s_prev, u_prev, o, d, med, surf, lights,
+                                ambient, tol_t, u_stop, rp, scratch, cand, stack, pos, l_dir, light_buf, j_val, col)
                             j_max = max(j_max, j_val[0, col] + j_val[1, col] + j_val[2, col])
                         # (the last Kronrod node is the part's last node: the search goes on from there)
                         _exp_weights(hh, kronrod_lag, fine_y, fine_w, node_w)
@@ -371,10 +459,8 @@ def ray_radiance(o, d, med, lights, quad, background, ambient, scratch, rp, cand
                             for c in range(3):
                                 out[c] += e0 * node_w[g] * j_val[c, g]
             k_a = k_b
-    t_view = math.exp(-u_total)
-    for c in range(3):
-        out[c] += background[c] * t_view
-    out[3] = t_view
+    scratch = _add_ray_end(o, d, t_hit, s_hit, u_total, u_stop, med, surf, lights, background, ambient, tol_t,
+                           scratch, cand, stack, light_buf, out)
     return scratch, rp
 
 
@@ -395,7 +481,8 @@ def jitter(seed, pixel, sample, dim):
 
 @njit(**NJIT)
 def alloc_work(n_balls, n_lights):
-    """Per-chunk work arrays of the image loop: candidate list, BVH stack, light buffer."""
+    """Per-chunk work arrays of the image loop: candidate list (n_balls: the most balls of media or of
+    surfaces), BVH stack, light buffer (a row per light, then rows of small work vectors)."""
     return (np.empty(max(n_balls, 1), np.int64), np.empty(2 * STACK, np.int64),
             np.empty((n_lights + 9, max(NCOEF + 1, MAX_NODES))))
 
@@ -414,8 +501,9 @@ def misses_media(o, d, node_box, root):
 
 @njit(**NJIT_PARALLEL)
 def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_right, cam_up, n_chunks,
-                med, lights, quad, background, ambient, image):
-    """Rows [row0, row1) of the image (H x W x 4, row 0 at the top), written into image[row0:row1].
+                med, surf, lights, quad, background, ambient, image, depth):
+    """Rows [row0, row1) of the image (H x W x 4, row 0 at the top), written into image[row0:row1], and
+    of depth (H x W): per pixel, the nearest surface hit t over its samples (inf where none hits).
 
     cam_right and cam_up are scaled to the half-extent of the image plane at distance 1. With spp > 1
     the samples are stratified on a ceil(sqrt(spp))^2 grid and jittered by a hash of (pixel, sample).
@@ -425,8 +513,8 @@ def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_righ
     for chunk in prange(n_chunks):
         scratch = alloc_scratch(64)
         rp = alloc_ray_pieces(64, med[3].shape[0] - 1)
-        cand, stack, light_buf = alloc_work(med[0].shape[0], lights[0].shape[0])
-        px_out = np.empty(4)
+        cand, stack, light_buf = alloc_work(max(med[0].shape[0], surf[0].shape[0]), lights[0].shape[0])
+        px_out = np.empty(5)
         d = np.empty(3)
         for p in range(chunk * n_pix // n_chunks, (chunk + 1) * n_pix // n_chunks):
             i = row0 + p // width
@@ -435,6 +523,7 @@ def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_righ
             acc1 = 0.0
             acc2 = 0.0
             acc3 = 0.0
+            nearest = np.inf
             for s in range(spp):
                 if spp == 1:
                     jx = 0.5
@@ -450,17 +539,20 @@ def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_righ
                 norm = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
                 for c in range(3):
                     d[c] /= norm
-                if misses_media(cam_pos, d, med[10], med[15]):
+                if misses_media(cam_pos, d, med[10], med[15]) and misses_media(cam_pos, d, surf[8], surf[13]):
                     for c in range(3):
-                        px_out[c] = background[c]  # no medium on the ray: the background, at once
+                        px_out[c] = background[c]  # nothing on the ray: the background, at once
                     px_out[3] = 1.0
+                    px_out[4] = np.inf
                 else:
-                    scratch, rp = ray_radiance(cam_pos, d, med, lights, quad, background, ambient, scratch, rp,
-                                               cand, stack, light_buf, px_out)
+                    scratch, rp = ray_radiance(cam_pos, d, med, surf, lights, quad, background, ambient, scratch,
+                                               rp, cand, stack, light_buf, px_out)
                 acc0 += px_out[0]
                 acc1 += px_out[1]
                 acc2 += px_out[2]
                 acc3 += px_out[3]
+                nearest = min(nearest, px_out[4])
+            depth[i, j] = nearest
             image[i, j, 0] = acc0 / spp
             image[i, j, 1] = acc1 / spp
             image[i, j, 2] = acc2 / spp

@@ -316,7 +316,8 @@ def inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch):
     Writes the inside pieces (t0, t1, F's control values on the piece) and the transitions: the t where
     the class F >= T changes, in order. A transition at a composite boundary (the class differs across
     it, as at a gap after a discontinuous kernel) counts too; the ray's start tmin never does.
-    With first_only the sweep stops at the first transition (opaque surfaces).
+    With first_only (opaque surfaces) the sweep stops where the ray is first inside: one transition,
+    that t (tmin itself when the ray starts inside), and no pieces.
     """
     iv_t0, iv_t1, iv_c, iv_mag = scratch[6], scratch[7], scratch[8], scratch[9]
     o_t0, o_t1, o_c, roots = scratch[10], scratch[11], scratch[12], scratch[13]
@@ -333,13 +334,11 @@ def inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch):
             roots[n_roots] = t_prev
             n_roots += 1
             inside = False
-            if first_only:
-                return n_out, n_roots
         for q in range(NCOEF):
             g[q] = iv_c[k, q] - threshold
         start_in = g[0] >= 0.0
         if start_in != inside:
-            if ta > tmin:
+            if ta > tmin or first_only:  # first_only is never inside here: this is an entry
                 roots[n_roots] = ta
                 n_roots += 1
                 if first_only:
@@ -415,3 +414,15 @@ def trace_blob(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, t
     n_iv = composite(n_p, tmin, tmax, scratch)
     n_out, n_roots = inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch)
     return scratch, n_out, n_roots
+
+
+@njit(**NJIT)
+def first_entry(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, threshold, tol_t, cand, n_cand,
+                scratch):
+    """Where the ray is first inside the blob (F >= T) within [tmin, tmax]: the first entering root,
+    tmin if the ray starts inside, inf if it never enters. Returns (scratch, t)."""
+    scratch, _, n_tr = trace_blob(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, threshold,
+                                  tol_t, cand, n_cand, True, scratch)
+    if n_tr == 0:
+        return scratch, np.inf
+    return scratch, scratch[13][0]

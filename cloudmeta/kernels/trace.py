@@ -1,13 +1,13 @@
 """Batches of rays through one blob, in parallel: the kernels behind cloudmeta.roots / segments /
-optical_depth / field. Each chunk of rays has its own scratch; every ray is independent, so results do
+optical_depth / first_hit / field / gradient. Each chunk of rays has its own scratch; every ray is independent, so results do
 not depend on the number of threads."""
 import numpy as np
 from numba import njit, prange
 
 from ..config import NJIT, NJIT_PARALLEL
-from .metaball import falloff, unit_distance2
+from .metaball import ball_gradient, falloff, unit_distance2
 from .bvh import STACK, bvh_candidates
-from .sweep import alloc_scratch, pieces_optical_depth, trace_blob
+from .sweep import alloc_scratch, first_entry, pieces_optical_depth, trace_blob
 
 #: chords a fresh scratch holds; rays that meet more grow their chunk's scratch once
 INITIAL_CAPACITY = 64
@@ -65,3 +65,41 @@ def field_at(points, centers, frames, weights, kernel, blobbiness, out):
             if u < 1.0:
                 acc += weights[i] * falloff(kernel, u, blobbiness)
         out[p] = acc
+
+
+@njit(**NJIT_PARALLEL)
+def first_hits(origins, dirs, tmax, centers, frames, weights, kernel, blobbiness, threshold, tol_t, bvh, n_chunks,
+               out):
+    """For each ray, where it is first inside the blob within [0, tmax]: 0 if it starts inside, inf if
+    never (the first root only: what an opaque surface needs)."""
+    n_rays = origins.shape[0]
+    n_balls = centers.shape[0]
+    node_box, node_a, node_b, node_n, items = bvh
+    for chunk in prange(n_chunks):
+        scratch = alloc_scratch(min(INITIAL_CAPACITY, n_balls))
+        cand = np.empty(n_balls, np.int64)
+        stack = np.empty(2 * STACK, np.int64)
+        for r in range(chunk * n_rays // n_chunks, (chunk + 1) * n_rays // n_chunks):
+            n_cand = bvh_candidates(origins[r], dirs[r], 0.0, tmax[r], 0, node_box, node_a, node_b, node_n,
+                                    items, stack, cand)
+            out[r] = np.inf
+            if n_cand > 0:
+                scratch, out[r] = first_entry(origins[r], dirs[r], 0.0, tmax[r], centers, frames, weights, kernel,
+                                              blobbiness, threshold, tol_t, cand, n_cand, scratch)
+
+
+@njit(**NJIT_PARALLEL)
+def gradient_at(points, centers, frames, weights, kernel, blobbiness, out):
+    """grad F(x) = sum_i q_i k'(u_i) grad u_i at every point (all balls), into out (N, 3)."""
+    for p in prange(points.shape[0]):
+        gx = 0.0
+        gy = 0.0
+        gz = 0.0
+        for i in range(centers.shape[0]):
+            ax, ay, az = ball_gradient(points[p], centers[i], frames[i], weights[i], kernel, blobbiness)
+            gx += ax
+            gy += ay
+            gz += az
+        out[p, 0] = gx
+        out[p, 1] = gy
+        out[p, 2] = gz
