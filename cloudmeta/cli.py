@@ -15,13 +15,16 @@ def _render(args):
     from .scene import load_scene
 
     scene = load_scene(args.scene, width=args.width, height=args.height, spp=args.spp)
-    if args.quality:
+    overrides = {k: v for k, v in (("quality", args.quality), ("shadows", args.shadows),
+                                   ("shadow_map", args.shadow_map)) if v is not None}
+    if overrides:
         from dataclasses import replace
-        scene = replace(scene, render=replace(scene.render, quality=args.quality))
+        scene = replace(scene, render=replace(scene.render, **overrides))
     exr = args.output or scene.output.path or str(Path(args.scene).with_suffix(".exr").name)
     png = args.png or scene.output.png
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     print(f"cloudmeta: rendering {args.scene}: {w} x {h}, {spp} spp, quality {scene.render.quality}, "
+          f"{scene.render.shadows} shadows, "
           f"{sum(len(m.blob) for m in scene.media)} balls in {len(scene.media)} media, "
           f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights")
     start = time.perf_counter()
@@ -41,6 +44,13 @@ def _inspect(args):
     return inspect_command(args)
 
 
+def _texels(text):
+    value = int(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 2, got {text}")
+    return value
+
+
 def build_parser():
     parser = argparse.ArgumentParser(prog="cloudmeta", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -53,6 +63,9 @@ def build_parser():
     r.add_argument("--height", type=int)
     r.add_argument("--spp", type=int, help="samples per pixel")
     r.add_argument("--quality", choices=["draft", "default", "fine", "reference"], help="quadrature preset")
+    r.add_argument("--shadows", choices=["exact", "map"],
+                   help="shadow rays to every light (exact), or light-space maps for directional lights (map)")
+    r.add_argument("--shadow-map", type=_texels, help="texels per side of a shadow map (default 384)")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: the scene's)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.set_defaults(run=_render)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
@@ -40,7 +41,7 @@ import numpy as np
 
 from .engine import DENSITY_MODES, n_chunks
 from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
-from .kernels.radiance import DIRECTIONAL, MAX_NODES, POINT, render_rows
+from .kernels.radiance import DIRECTIONAL, POINT, render_pixels
 from .kernels.shadowmap import trace_texels
 from .scene import DirectionalLight, RenderSettings, Scene
 
@@ -55,8 +56,10 @@ PRESETS = {
 PHASES = {"isotropic": ISOTROPIC, "hg": HG, "double_hg": DOUBLE_HG, "rayleigh": RAYLEIGH}
 #: texels per side of a shadow map when render.shadow_map is not given
 SHADOW_MAP_RESOLUTION = 384
-#: rows per kernel call: the progress bar moves once per band
-BAND_ROWS = 8
+#: the image is cut into bands of rows, about this many per thread (uneven rows balance out) and no
+#: taller than MAX_BAND_ROWS; the progress bar moves once per band
+BANDS_PER_THREAD = 16
+MAX_BAND_ROWS = 16
 
 
 @dataclass(frozen=True)
@@ -338,11 +341,21 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
     image = np.zeros((h, w, 4), np.float64)
     nearest = np.full((h, w), np.inf)
     bar = _progress(h, progress)
-    for row0 in range(0, h, BAND_ROWS):
-        row1 = min(h, row0 + BAND_ROWS)
-        render_rows(row0, row1, w, h, spp, seed, position, fwd, right, up,
-                    n_chunks((row1 - row0) * w), med, surf, lights, quad, background, ambient, image, nearest)
-        bar.update(row1 - row0)
+    threads = numba.get_num_threads()
+    rows = max(1, min(MAX_BAND_ROWS, -(-h // (BANDS_PER_THREAD * threads))))
+    bands = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
+
+    def band(rows):
+        r0, r1 = rows
+        render_pixels(r0, w, h, spp, seed, position, fwd, right, up, 0, (r1 - r0) * w, med, surf, lights, quad,
+                      background, ambient, image, nearest)
+        return r1 - r0
+
+    # each band is one call of a nogil kernel with its own work arrays, written to its own rows: threads
+    # share nothing, so the image does not depend on their number or order
+    with ThreadPoolExecutor(threads) as pool:
+        for done in pool.map(band, bands):
+            bar.update(done)
     bar.close()
     if depth:
         return image.astype(np.float32), nearest

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import OpenEXR
+import pytest
 
 from cloudmeta.cli import main
 
@@ -39,3 +40,24 @@ def test_bad_scene_exits_nonzero_with_the_loader_message(tmp_path):
     assert proc.returncode == 2
     assert "bad.yaml" in proc.stderr and "media[0].balls[0].radius" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_shadow_map_options_reach_the_renderer(tmp_path, capsys):
+    """--shadows map --shadow-map N renders with a map: close to the exact-shadow image, not equal to it."""
+    exrs = []
+    for extra in ([], ["--shadows", "map", "--shadow-map", "64"]):
+        exr = tmp_path / f"c{len(exrs)}.exr"
+        assert main(["render", str(ROOT / "scenes" / "cumulus.yaml"), "-o", str(exr), "--width", "24",
+                     "--height", "24", "--quality", "draft", "-q", *extra]) == 0
+        with OpenEXR.File(str(exr), separate_channels=True) as f:
+            exrs.append(np.stack([f.channels()[c].pixels for c in "RGB"], axis=-1))
+    assert "map shadows" in capsys.readouterr().out
+    diff = np.abs(exrs[1] - exrs[0]).max()
+    assert 0 < diff < 0.05 * exrs[0].max()
+
+
+def test_shadow_map_size_must_be_two_or_more(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["render", str(ROOT / "scenes" / "cumulus.yaml"), "--shadow-map", "1"])
+    assert e.value.code == 2
+    assert "expected an integer >= 2" in capsys.readouterr().err

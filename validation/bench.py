@@ -151,8 +151,8 @@ def main(argv=None, quick=False):
     report(f"cumulus {size}^2 reference (exact shadows)", t_ref, "s")
     for label, kw in (("default, exact shadows", dict(quality="default")),
                       ("draft, exact shadows", dict(quality="draft")),
-                      ("default, shadow map 256", dict(quality="default", shadows="map", shadow_map=256)),
-                      ("default, shadow map 512", dict(quality="default", shadows="map", shadow_map=512)),
+                      ("default, shadow map 384", dict(quality="default", shadows="map", shadow_map=384)),
+                      ("draft, shadow map 384", dict(quality="draft", shadows="map", shadow_map=384)),
                       ("draft, shadow map 256", dict(quality="draft", shadows="map", shadow_map=256))):
         img, t = timed(with_quality(scene, **kw))
         report(f"cumulus {size}^2 {label}: time", t, "s")

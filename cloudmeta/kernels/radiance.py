@@ -35,9 +35,9 @@ Four tuples carry the scene (see cloudmeta.render.PackedMedia.args for the order
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from ..config import NJIT, NJIT_INLINE, NJIT_PARALLEL
+from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF, bernstein_cumulative, bernstein_eval, bernstein_mean, subdivide
 from .optics import phase
 from .bvh import STACK, ray_box
@@ -410,38 +410,42 @@ def ray_radiance(o, d, med, surf, lights, quad, background, ambient, scratch, rp
                             break  # the rest is seen through less than `cutoff`
                         hh = h * 0.5 ** depth
                         k_0, s_0, up_0 = k, s_prev, u_prev
+                        e0 = math.exp(-u_step)
                         c_lo = 0.0
                         c_hi = 0.0
-                        for g in range(gauss_x.shape[0]):
-                            col = gauss_col[g]
-                            k, s_prev, u_prev, scratch = _source_at(
-                                u_step + gauss_x[g] * hh, k, k_b, s_prev, u_prev, o, d, med, surf, lights,
-                                ambient, tol_t, u_stop, rp, scratch, cand, stack, pos, l_dir, light_buf, j_val, col)
-                            j_sum = j_val[0, col] + j_val[1, col] + j_val[2, col]
-                            j_max = max(j_max, j_sum)
-                            c_lo += tail[0, g] * j_sum
-                            c_hi += tail[1, g] * j_sum
-                        _exp_weights(hh, gauss_lag, fine_y, fine_w, node_w)
-                        e0 = math.exp(-u_step)
-                        # J's error, weighted by e^-u, is then below tolerance * j_max: deep steps may be
-                        # rougher
-                        allowed = tolerance * j_max
-                        if (abs(c_lo) + abs(c_hi)) * e0 <= allowed:
-                            for g in range(gauss_x.shape[0]):
-                                for c in range(3):
-                                    out[c] += e0 * node_w[g] * j_val[c, gauss_col[g]]
-                            continue
                         i_gauss = 0.0
-                        for g in range(gauss_x.shape[0]):
-                            col = gauss_col[g]
-                            i_gauss += node_w[g] * (j_val[0, col] + j_val[1, col] + j_val[2, col])
-                        k, s_prev, u_prev = k_0, s_0, up_0  # the Kronrod nodes, again in increasing u
-                        for g in range(kronrod_col.shape[0]):
-                            col = kronrod_col[g]
+                        allowed = 0.0
+                        gauss_done = False
+                        n_g = gauss_x.shape[0]
+                        # the 7 Gauss nodes, then (unless they suffice) the 8 Kronrod nodes: one loop, so
+                        # that the inlined node code is compiled once
+                        for g in range(n_g + kronrod_col.shape[0]):
+                            if g == n_g:
+                                _exp_weights(hh, gauss_lag, fine_y, fine_w, node_w)
+                                # J's error, weighted by e^-u, is then below tolerance * j_max: deep steps
+                                # may be rougher
+                                allowed = tolerance * j_max
+                                if (abs(c_lo) + abs(c_hi)) * e0 <= allowed:
+                                    gauss_done = True
+                                    break
+                                for q in range(n_g):
+                                    col = gauss_col[q]
+                                    i_gauss += node_w[q] * (j_val[0, col] + j_val[1, col] + j_val[2, col])
+                                k, s_prev, u_prev = k_0, s_0, up_0  # the Kronrod nodes, again in increasing u
+                            col = gauss_col[g] if g < n_g else kronrod_col[g - n_g]
                             k, s_prev, u_prev, scratch = _source_at(
                                 u_step + kronrod_x[col] * hh, k, k_b, s_prev, u_prev, o, d, med, surf, lights,
                                 ambient, tol_t, u_stop, rp, scratch, cand, stack, pos, l_dir, light_buf, j_val, col)
-                            j_max = max(j_max, j_val[0, col] + j_val[1, col] + j_val[2, col])
+                            j_sum = j_val[0, col] + j_val[1, col] + j_val[2, col]
+                            j_max = max(j_max, j_sum)
+                            if g < n_g:
+                                c_lo += tail[0, g] * j_sum
+                                c_hi += tail[1, g] * j_sum
+                        if gauss_done:
+                            for g in range(n_g):
+                                for c in range(3):
+                                    out[c] += e0 * node_w[g] * j_val[c, gauss_col[g]]
+                            continue
                         # (the last Kronrod node is the part's last node: the search goes on from there)
                         _exp_weights(hh, kronrod_lag, fine_y, fine_w, node_w)
                         i_kronrod = 0.0
@@ -499,61 +503,60 @@ def misses_media(o, d, node_box, root):
     return True
 
 
-@njit(**NJIT_PARALLEL)
-def render_rows(row0, row1, width, height, spp, seed, cam_pos, cam_fwd, cam_right, cam_up, n_chunks,
-                med, surf, lights, quad, background, ambient, image, depth):
-    """Rows [row0, row1) of the image (H x W x 4, row 0 at the top), written into image[row0:row1], and
-    of depth (H x W): per pixel, the nearest surface hit t over its samples (inf where none hits).
+@njit(**NJIT)
+def render_pixels(row0, width, height, spp, seed, cam_pos, cam_fwd, cam_right, cam_up, p0, p1, med, surf,
+                  lights, quad, background, ambient, image, depth):
+    """Pixels p0 .. p1 - 1, counted row by row from the start of row row0, into image (H x W x 4, row 0
+    at the top) and depth (H x W: per pixel, the nearest surface hit t over its samples, inf where none
+    hits), with their own work arrays. nogil: cloudmeta.render runs bands of rows on several threads.
 
     cam_right and cam_up are scaled to the half-extent of the image plane at distance 1. With spp > 1
     the samples are stratified on a ceil(sqrt(spp))^2 grid and jittered by a hash of (pixel, sample).
     """
-    n_pix = (row1 - row0) * width
     strata = int(math.ceil(math.sqrt(spp)))
-    for chunk in prange(n_chunks):
-        scratch = alloc_scratch(64)
-        rp = alloc_ray_pieces(64, med[3].shape[0] - 1)
-        cand, stack, light_buf = alloc_work(max(med[0].shape[0], surf[0].shape[0]), lights[0].shape[0])
-        px_out = np.empty(5)
-        d = np.empty(3)
-        for p in range(chunk * n_pix // n_chunks, (chunk + 1) * n_pix // n_chunks):
-            i = row0 + p // width
-            j = p % width
-            acc0 = 0.0
-            acc1 = 0.0
-            acc2 = 0.0
-            acc3 = 0.0
-            nearest = np.inf
-            for s in range(spp):
-                if spp == 1:
-                    jx = 0.5
-                    jy = 0.5
-                else:
-                    pix = i * width + j
-                    jx = ((s % strata) + jitter(seed, pix, s, 0)) / strata
-                    jy = (((s // strata) % strata) + jitter(seed, pix, s, 1)) / strata
-                x = 2.0 * (j + jx) / width - 1.0
-                y = 1.0 - 2.0 * (i + jy) / height
+    scratch = alloc_scratch(64)
+    rp = alloc_ray_pieces(64, med[3].shape[0] - 1)
+    cand, stack, light_buf = alloc_work(max(med[0].shape[0], surf[0].shape[0]), lights[0].shape[0])
+    px_out = np.empty(5)
+    d = np.empty(3)
+    for p in range(p0, p1):
+        i = row0 + p // width
+        j = p % width
+        acc0 = 0.0
+        acc1 = 0.0
+        acc2 = 0.0
+        acc3 = 0.0
+        nearest = np.inf
+        for s in range(spp):
+            if spp == 1:
+                jx = 0.5
+                jy = 0.5
+            else:
+                pix = i * width + j
+                jx = ((s % strata) + jitter(seed, pix, s, 0)) / strata
+                jy = (((s // strata) % strata) + jitter(seed, pix, s, 1)) / strata
+            x = 2.0 * (j + jx) / width - 1.0
+            y = 1.0 - 2.0 * (i + jy) / height
+            for c in range(3):
+                d[c] = cam_fwd[c] + x * cam_right[c] + y * cam_up[c]
+            norm = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            for c in range(3):
+                d[c] /= norm
+            if misses_media(cam_pos, d, med[10], med[15]) and misses_media(cam_pos, d, surf[8], surf[13]):
                 for c in range(3):
-                    d[c] = cam_fwd[c] + x * cam_right[c] + y * cam_up[c]
-                norm = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-                for c in range(3):
-                    d[c] /= norm
-                if misses_media(cam_pos, d, med[10], med[15]) and misses_media(cam_pos, d, surf[8], surf[13]):
-                    for c in range(3):
-                        px_out[c] = background[c]  # nothing on the ray: the background, at once
-                    px_out[3] = 1.0
-                    px_out[4] = np.inf
-                else:
-                    scratch, rp = ray_radiance(cam_pos, d, med, surf, lights, quad, background, ambient, scratch,
-                                               rp, cand, stack, light_buf, px_out)
-                acc0 += px_out[0]
-                acc1 += px_out[1]
-                acc2 += px_out[2]
-                acc3 += px_out[3]
-                nearest = min(nearest, px_out[4])
-            depth[i, j] = nearest
-            image[i, j, 0] = acc0 / spp
-            image[i, j, 1] = acc1 / spp
-            image[i, j, 2] = acc2 / spp
-            image[i, j, 3] = 1.0 - acc3 / spp  # alpha = 1 - T(0, t_end)
+                    px_out[c] = background[c]  # nothing on the ray: the background, at once
+                px_out[3] = 1.0
+                px_out[4] = np.inf
+            else:
+                scratch, rp = ray_radiance(cam_pos, d, med, surf, lights, quad, background, ambient, scratch,
+                                           rp, cand, stack, light_buf, px_out)
+            acc0 += px_out[0]
+            acc1 += px_out[1]
+            acc2 += px_out[2]
+            acc3 += px_out[3]
+            nearest = min(nearest, px_out[4])
+        depth[i, j] = nearest
+        image[i, j, 0] = acc0 / spp
+        image[i, j, 1] = acc1 / spp
+        image[i, j, 2] = acc2 / spp
+        image[i, j, 3] = 1.0 - acc3 / spp  # alpha = 1 - T(0, t_end)
