@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import inspect
 import math
 import sys
 import tempfile
@@ -82,14 +83,25 @@ def _pmul(a, b):
     return out
 
 
+#: mpmath >= 1.4 takes coefficients lowest power first (asc=True) and deprecates the old order
+_ASCENDING = "asc" in inspect.signature(mp.polyroots).parameters
+
+
+def _mp_polyroots(coeffs, **kw):
+    """mpmath.polyroots of coefficients given highest power first, in either mpmath's convention."""
+    if _ASCENDING:
+        return mp.polyroots(list(coeffs)[::-1], asc=True, **kw)
+    return mp.polyroots(coeffs, **kw)
+
+
 def _polyroots(coeffs):
     """All complex roots (mpmath); clusters (double roots) converge slowly: retry with more precision."""
     for steps, extra in ((600, 3 * DPS), (3000, 8 * DPS)):
         try:
-            return mp.polyroots(coeffs, maxsteps=steps, extraprec=extra)
+            return _mp_polyroots(coeffs, maxsteps=steps, extraprec=extra)
         except mp.libmp.NoConvergence:
             continue
-    return mp.polyroots(coeffs, maxsteps=3000, extraprec=8 * DPS, error=True)[0]
+    return _mp_polyroots(coeffs, maxsteps=3000, extraprec=8 * DPS, error=True)[0]
 
 
 def exact_ray(blob, o, d, mode="field", scale=1.0, t_max=None):
