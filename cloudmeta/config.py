@@ -55,3 +55,11 @@ NJIT = dict(cache=CACHE, fastmath=FASTMATH, nogil=True, error_model="numpy")
 NJIT_INLINE = dict(NJIT, inline="always")
 #: flags for the few kernels that loop over rays or pixels with prange
 NJIT_PARALLEL = dict(NJIT, parallel=True)
+
+
+def is_compiled(module, function):
+    """Whether the cache already holds ``function`` of ``cloudmeta/kernels/<module>.py`` (so a run will
+    load it rather than compile it)."""
+    if not CACHE:
+        return False
+    return any(Path(numba.config.CACHE_DIR).glob(f"**/{module}.{function}-*.nbi"))
