@@ -32,7 +32,6 @@ seen through less than ``cutoff`` of view transmittance is not shaded (like the 
 from __future__ import annotations
 
 import math
-import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 

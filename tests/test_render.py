@@ -6,7 +6,6 @@ import numba
 import numpy as np
 import pytest
 
-import cloudmeta as cm
 from cloudmeta.render import render
 from cloudmeta.scene import load_scene
 

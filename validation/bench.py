@@ -26,7 +26,6 @@ import sys
 import tempfile
 import textwrap
 import time
-from dataclasses import replace
 from pathlib import Path
 
 if __package__ in (None, ""):

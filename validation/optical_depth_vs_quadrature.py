@@ -298,7 +298,7 @@ def main(argv=None, quick=False):
     overall = summarise(rows)
     elapsed = time.perf_counter() - t_start
 
-    print(f"Optical depth: cm.optical_depth vs scipy quad of the plain field (MODEL.md §4)")
+    print("Optical depth: cm.optical_depth vs scipy quad of the plain field (MODEL.md §4)")
     print(cache_note())
     print(f"{len(rows)} rays, seed {args.seed}; requirement: relative error < {REL_LIMIT:g} on every ray, "
           f"|tau| <= {ZERO_ABS_LIMIT:g} where the reference is 0\n")

@@ -281,7 +281,7 @@ def main(argv=None, quick=False):
     print("Paper examples (Nishita & Nakamae; MODEL.md §1-3)\n")
     print(cache_note() + "\n")
     print_table(ch.rows)
-    print(f"\nFig. 5 composite on [4, 5] (exact values):")
+    print("\nFig. 5 composite on [4, 5] (exact values):")
     print("  A (a=0.5, s in [2/3, 1]):", np.array2string(out["fig5_A"], precision=6))
     print("  B (a=1,   s in [0, 1/2]):", np.array2string(out["fig5_B"], precision=6))
     print("  A rounded:", np.round(out["fig5_A"], 2), " paper:", FIG5_A)

@@ -3,7 +3,6 @@
 Every curve in the engine has DEGREE 6 (NCOEF = 7 control values); lower-degree kernels are elevated,
 and the hot routines are written out for that degree.
 """
-import numpy as np
 from numba import njit
 
 from ..config import NJIT, NJIT_INLINE

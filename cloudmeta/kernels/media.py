@@ -28,7 +28,7 @@ def alloc_ray_pieces(capacity, n_media):
 @njit(**NJIT_INLINE)
 def medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack):
     """Inside pieces of medium m on the ray (in scratch); returns (scratch, n_pieces)."""
-    centers, frames, weights, start, kernel, threshold = med[0], med[1], med[2], med[3], med[4], med[5]
+    centers, frames, weights, kernel, threshold = med[0], med[1], med[2], med[4], med[5]
     n_cand = bvh_candidates(o, d, 0.0, tmax, med[15][m], med[10], med[11], med[12], med[13], med[14],
                             stack, cand)
     if n_cand == 0:

@@ -326,7 +326,7 @@ def ray_radiance(o, d, med, surf, lights, quad, background, ambient, scratch, rp
     then runs over each inside segment (a run of adjacent intervals) as a whole, so that chord ends,
     which the light does not see, cost no nodes. Returns (scratch, rp), grown if this ray needed more room.
     """
-    med_albedo, med_phase = med[8], med[9]
+    med_albedo = med[8]
     light_kind = lights[0]
     (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col, tail, fine_y, fine_w,
      max_tau, max_length, max_angle, cutoff, tol_t, tolerance) = quad
@@ -346,7 +346,7 @@ def ray_radiance(o, d, med, surf, lights, quad, background, ambient, scratch, rp
                                scratch, cand, stack, light_buf, out)
         return scratch, rp
     n_el = elementary_intervals(n, rp)
-    el_t0, el_t1, el_u0, el_S, el_sig = rp[7], rp[8], rp[9], rp[10], rp[11]
+    el_t0, el_t1, el_u0 = rp[7], rp[8], rp[9]
     u_total = el_u0[n_el]
     n_lights = light_kind.shape[0]
     n_media = med_albedo.shape[0]

@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import NJIT, NJIT_INLINE, NJIT_PARALLEL
-from .bernstein import NCOEF, bernstein_cumulative, bernstein_mean
+from .bernstein import bernstein_cumulative, bernstein_mean
 from .media import alloc_ray_pieces, collect_media
 from .sweep import alloc_scratch
 

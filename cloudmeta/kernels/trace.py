@@ -4,7 +4,7 @@ not depend on the number of threads."""
 import numpy as np
 from numba import njit, prange
 
-from ..config import NJIT, NJIT_PARALLEL
+from ..config import NJIT_PARALLEL
 from .metaball import ball_gradient, falloff, unit_distance2
 from .bvh import STACK, bvh_candidates
 from .sweep import alloc_scratch, first_entry, pieces_optical_depth, trace_blob
