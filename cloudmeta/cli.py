@@ -28,7 +28,8 @@ def _render(args):
           f"{sum(len(m.blob) for m in scene.media)} balls in {len(scene.media)} media, "
           f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights")
     from .config import is_compiled
-    if not is_compiled("radiance", "render_pixels"):
+    from .kernels.radiance import render_pixels
+    if not is_compiled(render_pixels):
         print("cloudmeta: compiling the kernels for this machine (once: about 2 minutes on 2 cores, then cached)",
               flush=True)
     start = time.perf_counter()

@@ -57,9 +57,11 @@ NJIT_INLINE = dict(NJIT, inline="always")
 NJIT_PARALLEL = dict(NJIT, parallel=True)
 
 
-def is_compiled(module, function):
-    """Whether the cache already holds ``function`` of ``cloudmeta/kernels/<module>.py`` (so a run will
-    load it rather than compile it)."""
+def is_compiled(dispatcher):
+    """Whether numba's cache already holds the jitted function ``dispatcher`` for this installation (its
+    cache folder depends on the source file's path too), so that a run loads it instead of compiling.
+    Reads the index path from numba's cache object; False wherever that is not available."""
     if not CACHE:
         return False
-    return any(Path(numba.config.CACHE_DIR).glob(f"**/{module}.{function}-*.nbi"))
+    index = getattr(getattr(getattr(dispatcher, "_cache", None), "_cache_file", None), "_index_path", None)
+    return index is not None and os.path.exists(index)
