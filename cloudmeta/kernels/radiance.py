@@ -6,10 +6,12 @@ and their polynomials are added, exactly as the engine composites balls. On each
 
 - the view optical depth tau(0, t) is exact at any t (the antiderivative of a Bernstein polynomial);
 - the in-scattering integral is taken in optical depth u, where T sigma_s dt = e^-u (sigma_s/sigma_t) du:
-  Gauss-Legendre nodes with product-integration weights (exact for e^-u times a polynomial, see
-  _exp_weights) on steps no thicker than ``max_tau`` and no longer than ``max_length``, with an
-  exact shadow ray from every node to every light; near point lights the interval is first cut at equal
-  angles (at most ``max_angle``) seen from the light, which tames their 1/r^2.
+  product-integration weights (exact for e^-u times a polynomial, see _exp_weights) on steps no thicker
+  than ``max_tau`` and no longer than ``max_length``; each step takes 7 Gauss nodes, the 8 Kronrod nodes
+  of G7-K15 where J's Legendre tail exceeds ``tolerance``, and is halved where the two rules disagree
+  (docs/model_notes.md); an exact shadow ray goes from every node to every light; near point lights the
+  interval is first cut at equal angles (at most ``max_angle``) seen from the light, which tames their
+  1/r^2.
 
 With opaque surfaces, the camera ray first finds its first surface hit t_hit (kernels.surfaces); the
 media are traced over [0, t_hit] only, and the hit, shaded as Lambertian, takes the background's place:
