@@ -6,14 +6,38 @@ to the PNG preview alone.
 """
 from __future__ import annotations
 
+import contextlib
+import os
+import tempfile
+
 import numpy as np
-import OpenEXR
-from PIL import Image
 
 from .colour import DEFAULT_COLOURSPACE, chromaticities, encode_srgb
 from .errors import InputError
 
 _CHANNELS = "RGBA"
+
+
+@contextlib.contextmanager
+def atomic_output(path):
+    """Yield a temporary path in ``path``'s folder; rename it onto ``path`` only when the block succeeds.
+
+    A reader never sees a half-written file, and on any failure (an exception, Ctrl-C) the temporary file
+    is removed and ``path`` is left as it was. The temporary name keeps the extension (``.x.exr.tmp-abc.exr``)
+    so that tools which look at it still know the format.
+    """
+    path = os.fspath(path)
+    folder, name = os.path.split(os.path.abspath(path))
+    ext = os.path.splitext(name)[1]
+    fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-", suffix=ext, dir=folder)
+    os.close(fd)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
 
 
 def _check_image(image):
@@ -42,13 +66,12 @@ def write_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False):
         kind = "HALF" if half else "FLOAT"
         raise InputError(f"image: values up to {np.abs(arr).max():g} overflow {kind} channels"
                          + ("; write with half=False" if half else ""))
-    header = {
-        "compression": OpenEXR.ZIP_COMPRESSION,
-        "type": OpenEXR.scanlineimage,
-        "chromaticities": chromaticities(colourspace),
-    }
+    header = {"chromaticities": chromaticities(colourspace)}
     channels = {name: np.ascontiguousarray(stored[:, :, i]) for i, name in enumerate(_CHANNELS[:arr.shape[2]])}
-    OpenEXR.File(header, channels).write(str(path))
+    import OpenEXR  # here, not at import: a render that writes no EXR should not pay for it
+    header["compression"], header["type"] = OpenEXR.ZIP_COMPRESSION, OpenEXR.scanlineimage
+    with atomic_output(path) as tmp:
+        OpenEXR.File(header, channels).write(tmp)
 
 
 def read_exr(path):
@@ -56,6 +79,7 @@ def read_exr(path):
 
     Channels other than R, G, B, A follow in name order. ``header`` is the file's header dict.
     """
+    import OpenEXR
     with OpenEXR.File(str(path), separate_channels=True) as f:
         header = dict(f.header())  # a copy: File clears its own header dict when it closes
         channels = f.channels()
@@ -67,5 +91,8 @@ def read_exr(path):
 
 def write_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
     """Write an 8-bit sRGB preview: RGB only (the render's RGB is already over its background; alpha is dropped)."""
+    from PIL import Image
     arr = _check_image(image)
-    Image.fromarray(encode_srgb(arr[:, :, :3], exposure, colourspace)).save(str(path), format="PNG")
+    pixels = Image.fromarray(encode_srgb(arr[:, :, :3], exposure, colourspace))
+    with atomic_output(path) as tmp:
+        pixels.save(tmp, format="PNG")

@@ -1,4 +1,6 @@
 """cloudmeta.io: linear OpenEXR out and back, sRGB PNG previews."""
+import os
+
 import numpy as np
 import OpenEXR
 import pytest
@@ -76,3 +78,24 @@ def test_05_png_is_srgb_rgb(tmp_path):
     np.testing.assert_array_equal(px[0, 0], [255, 255, 255])
     np.testing.assert_array_equal(px[1, 1], [188, 188, 188])
     assert px[2, 3].tolist() == [0, 0, 0]
+
+
+def test_atomic_output_renames_only_on_success(tmp_path):
+    from cloudmeta.io import atomic_output
+    target = tmp_path / "out.exr"
+    target.write_bytes(b"old")
+    try:
+        with atomic_output(target) as tmp:
+            assert tmp.endswith(".exr") and os.path.dirname(tmp) == str(tmp_path)
+            with open(tmp, "wb") as f:
+                f.write(b"half")
+            raise RuntimeError("fails mid-write")
+    except RuntimeError:
+        pass
+    assert target.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.exr"]
+    with atomic_output(target) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(b"new")
+    assert target.read_bytes() == b"new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.exr"]
