@@ -11,6 +11,7 @@ import numpy as np
 
 from .blob import Blob
 from .errors import InputError
+from .kernels.records import BVH, BlobRecord, Rays, TraceOut
 from .kernels.sweep import DENSITY_EXCESS, DENSITY_FIELD, DENSITY_UNIFORM
 from .kernels.trace import field_at, first_hits, gradient_at, trace_rays
 
@@ -30,6 +31,16 @@ def _points(name, value):
     if len(bad):
         raise InputError(f"{name}[{bad[0]}]: expected finite coordinates, got {arr[bad[0]]}")
     return arr
+
+
+def blob_record(blob):
+    """The blob as the kernels read it (kernels.records.BlobRecord)."""
+    return BlobRecord(blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, blob.threshold)
+
+
+def blob_bvh(blob):
+    """The blob's BVH as a kernels.records.BVH with one root, node 0."""
+    return BVH(*blob.bvh, np.zeros(1, np.int64))
 
 
 def check_blob(blob):
@@ -98,9 +109,8 @@ def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1
     n_seg = np.empty(n, np.int64)
     roots = np.empty((n, cap))
     segs = np.empty((n, cap, 2))
-    args = (blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, blob.threshold, tol,
-            DENSITY_MODES[density], float(scale), blob.bvh)
-    trace_rays(o, d, tm, *args, cap, n_chunks(n), tau, n_roots, roots, n_seg, segs)
+    args = (blob_record(blob), blob_bvh(blob), tol, DENSITY_MODES[density], float(scale))
+    trace_rays(Rays(o, d, tm), *args, n_chunks(n), TraceOut(tau, n_roots, roots, n_seg, segs))
     if not lists:
         return tau, None, None
     roots_list = [roots[i, :n_roots[i]].copy() for i in range(n)]
@@ -110,7 +120,7 @@ def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1
         big = int(max(n_roots[over].max(), n_seg[over].max()))
         t2, nr2, r2, ns2, s2 = (np.empty(len(over)), np.empty(len(over), np.int64), np.empty((len(over), big)),
                                 np.empty(len(over), np.int64), np.empty((len(over), big, 2)))
-        trace_rays(o[over], d[over], tm[over], *args, big, n_chunks(len(over)), t2, nr2, r2, ns2, s2)
+        trace_rays(Rays(o[over], d[over], tm[over]), *args, n_chunks(len(over)), TraceOut(t2, nr2, r2, ns2, s2))
         for k, i in enumerate(over):
             roots_list[i] = r2[k, :nr2[k]].copy()
             segs_list[i] = s2[k, :ns2[k]].copy()
@@ -152,8 +162,8 @@ def first_hit(blob, origins, directions, t_max=np.inf, tolerance=ROOT_TOLERANCE)
     blob = check_traceable(blob)
     o, d, tm = prepare_rays(origins, directions, t_max)
     out = np.empty(len(o))
-    first_hits(o, d, tm, blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, blob.threshold,
-               root_tolerance(blob, tolerance), blob.bvh, n_chunks(len(o)), out)
+    first_hits(Rays(o, d, tm), blob_record(blob), blob_bvh(blob), root_tolerance(blob, tolerance),
+               n_chunks(len(o)), out)
     return out
 
 

@@ -230,11 +230,9 @@ def _camera_frustum(camera, width, height, distance):
     rectangle, and a small triangle on its top edge that shows which way is up."""
     import pyvista as pv
 
-    forward = camera.look_at - camera.position
-    forward = forward / np.linalg.norm(forward)
-    right = np.cross(forward, camera.up)
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
+    from .pack import camera_frame
+
+    forward, right, up = camera_frame(camera)
     half_h = distance * np.tan(np.radians(camera.fov) / 2.0)
     half_w = half_h * width / height
     centre = camera.position + distance * forward
@@ -352,7 +350,9 @@ def draw_volume(plotter, scene, grid, widgets):
     lo, hi = np.array(grid.bounds[0::2]), np.array(grid.bounds[1::2])
     centre, diagonal = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
     cam = scene.camera
-    forward = (cam.look_at - cam.position) / np.linalg.norm(cam.look_at - cam.position)
+    from .pack import camera_frame
+
+    forward, right, up = camera_frame(cam)
     distance = float(np.dot(centre - cam.position, forward))
     if distance <= 0.0:  # the scene is behind the camera: show the image plane at the look-at point
         distance = float(np.linalg.norm(cam.look_at - cam.position))
@@ -380,9 +380,6 @@ def draw_volume(plotter, scene, grid, widgets):
     plotter.show_axes()
     # seen from the scene camera's right, a little beyond the scene and above: the frustum runs across the
     # picture from the eye to the scene, and the slices face the viewer at an angle
-    right = np.cross(forward, cam.up)
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
     _fit_view(plotter, np.vstack(fit), right + VIEW_BEYOND * forward + VIEW_ABOVE * up, up)
 
 

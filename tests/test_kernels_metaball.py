@@ -218,6 +218,7 @@ def test_chebyshev_to_bernstein_matrix():
 def test_gather_chords_counts_pieces_beyond_capacity():
     """The capacity contract holds for pieces: the count is every piece; only the first capacity rows
     are written, and they are the same as with room for all."""
+    from cloudmeta.kernels.records import BlobRecord
     from cloudmeta.kernels.sweep import alloc_scratch, gather_chords
     centers = np.array([[0.0, 0.0, 0.0], [1.0, 0.2, 0.0], [2.5, -0.3, 0.1]])
     frames = np.array([np.eye(3) / r for r in (1.5, 1.0, 1.2)])
@@ -226,10 +227,11 @@ def test_gather_chords_counts_pieces_beyond_capacity():
     o, d = np.array([-5.0, 0.1, 0.05]), np.array([1.0, 0.0, 0.0])
     for kernel, b, per_chord in ((km.WYVILL6, 4.0, 1), (km.NISHIMURA, 4.0, None), (km.BLINN, 2.5, None)):
         big = alloc_scratch(1000)
-        n = gather_chords(o, d, 0.0, np.inf, centers, frames, weights, kernel, b, cand, 3, big)
+        n = gather_chords(o, d, 0.0, np.inf, BlobRecord(centers, frames, weights, kernel, b, 0.5), cand, 3, big)
         assert (n == 3) if per_chord else (n > 6)
         small = alloc_scratch(3)
-        assert gather_chords(o, d, 0.0, np.inf, centers, frames, weights, kernel, b, cand, 3, small) == n
+        assert gather_chords(o, d, 0.0, np.inf, BlobRecord(centers, frames, weights, kernel, b, 0.5), cand, 3,
+                             small) == n
         for k in range(3):
             np.testing.assert_array_equal(small[k][:3], big[k][:3])
         if per_chord is None:  # gather_chords writes out chord_pieces' loop: the same rows, bit for bit
@@ -243,6 +245,6 @@ def test_gather_chords_counts_pieces_beyond_capacity():
             np.testing.assert_array_equal(big[1][:n], p1)
             np.testing.assert_array_equal(big[2][:n], pc)
         # tmin / tmax leave out the pieces that lie outside
-        m = gather_chords(o, d, 5.0, 6.0, centers, frames, weights, kernel, b, cand, 3, big)
+        m = gather_chords(o, d, 5.0, 6.0, BlobRecord(centers, frames, weights, kernel, b, 0.5), cand, 3, big)
         assert 1 <= m <= n
         assert np.all((big[1][:m] > 5.0) & (big[0][:m] < 6.0))

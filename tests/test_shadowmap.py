@@ -10,7 +10,7 @@ import cloudmeta as cm
 from cloudmeta.kernels.shadowmap import map_optical_depth
 
 ROOT = Path(__file__).resolve().parent.parent
-render_module = sys.modules["cloudmeta.render"]
+pack_module = sys.modules["cloudmeta.pack"]
 
 
 def cumulus(size=40, **settings):
@@ -20,9 +20,9 @@ def cumulus(size=40, **settings):
 
 def cumulus_map(resolution):
     s = cumulus()
-    med = render_module.pack_media(s.media).args()
-    lo, hi = render_module._media_bbox(s)
-    return s, render_module.build_shadow_maps(s.lights, med, lo, hi, resolution, 1e-8)
+    med = pack_module.pack_media(s.media)
+    lo, hi = pack_module.media_bbox(s)
+    return s, pack_module.build_shadow_maps(s.lights, med, lo, hi, resolution, 1e-8)
 
 
 def test_map_is_exact_in_depth_on_texel_rays():
@@ -40,7 +40,7 @@ def test_map_is_exact_in_depth_on_texel_rays():
         depth = rng.uniform(0.0, 2.02 * 0.5 * np.linalg.norm(blob.bbox[1] - blob.bbox[0]))
         points.append(origin + (i + 0.5) * size * e1 + (j + 0.5) * size * e2 + depth * ray)
     points = np.array(points)
-    got = np.array([map_optical_depth(p, g, res[0], base[0], start, t0, t1, c, cum, reach) for p in points])
+    got = np.array([map_optical_depth(p, maps, map_of[0]) for p in points])
     exact = cm.optical_depth(blob, points, np.broadcast_to(-ray, points.shape).copy(), density=m.density.mode,
                              scale=m.density.scale)
     assert np.count_nonzero(exact > 0.1) > 20  # the points do sample the cloud's shadow
@@ -49,7 +49,7 @@ def test_map_is_exact_in_depth_on_texel_rays():
 
 def test_single_pass_overflow_gives_the_same_map(monkeypatch):
     _, once = cumulus_map(40)
-    monkeypatch.setattr(render_module, "MAP_PIECES_PER_TEXEL", 0)  # every chunk overflows: a second pass
+    monkeypatch.setattr(pack_module, "MAP_PIECES_PER_TEXEL", 0)  # every chunk overflows: a second pass
     _, twice = cumulus_map(40)
     for a, b in zip(once, twice):
         np.testing.assert_array_equal(a, b)

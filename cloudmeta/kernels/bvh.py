@@ -130,8 +130,10 @@ def ray_box(ox, oy, oz, ix, iy, iz, node_box, k, tmin, tmax):
 
 
 @njit(**NJIT)
-def bvh_candidates(o, d, tmin, tmax, root, node_box, node_a, node_b, node_n, items, stack, cand):
-    """Ball indices whose boxes the ray meets within [tmin, tmax], into cand; returns their number."""
+def bvh_candidates(o, d, tmin, tmax, bvh, root, stack, cand):
+    """Ball indices whose boxes the ray meets within [tmin, tmax], into cand; returns their number.
+    bvh: a records.BVH (its node arrays; ``root`` the node to start from)."""
+    node_box, node_a, node_b, node_n, items = bvh.node_box, bvh.node_a, bvh.node_b, bvh.node_n, bvh.items
     ox, oy, oz = o[0], o[1], o[2]
     ix = 1.0 / d[0] if d[0] != 0.0 else np.inf
     iy = 1.0 / d[1] if d[1] != 0.0 else np.inf
@@ -166,8 +168,9 @@ def _box_holds(box, x):
 
 
 @njit(**NJIT)
-def bvh_point_candidates(x, root, node_box, node_a, node_b, node_n, items, stack, cand):
+def bvh_point_candidates(x, bvh, root, stack, cand):
     """Ball indices whose boxes hold the point x, into cand; returns their number."""
+    node_box, node_a, node_b, node_n, items = bvh.node_box, bvh.node_a, bvh.node_b, bvh.node_n, bvh.items
     if not _box_holds(node_box[root], x):
         return 0
     n = 0

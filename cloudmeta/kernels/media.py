@@ -1,7 +1,5 @@
 """Every medium along one ray: the pieces a camera ray integrates over, and the optical depth of a
-shadow ray. The media are packed as one ``med`` tuple (see cloudmeta.render.PackedMedia.args):
-(centers, frames, weights, start, kernel, threshold, mode, scale, albedo, phase,
- node_box, node_a, node_b, node_n, items, root, blobbiness)."""
+shadow ray. The media are one records.Media (cloudmeta.pack.pack_media)."""
 import math
 
 import numpy as np
@@ -10,62 +8,79 @@ from numba import njit
 from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF
 from .bvh import bvh_candidates
+from .records import BlobRecord, RayPieces
 from .sweep import DENSITY_EXCESS, DENSITY_UNIFORM, pieces_optical_depth, trace_blob
 
 
 @njit(**NJIT)
 def alloc_ray_pieces(capacity, n_media):
-    """Pieces of all media on one ray: t0, t1, sigma_t control values, medium; the interval sweep's
-    breakpoints, start order and active list; and the ray's elementary intervals (between consecutive
-    piece ends): t0, t1, optical depth from the ray's start to t0, sigma_t of all media, and of each."""
+    """Pieces of all media on one ray, room for ``capacity`` (a records.RayPieces)."""
     p = max(capacity, 1)
-    return (np.empty(p), np.empty(p), np.empty((p, NCOEF)), np.empty(p, np.int64),
-            np.empty(2 * p), np.empty(p, np.int64), np.empty(p, np.int64),
-            np.empty(2 * p), np.empty(2 * p), np.empty(2 * p + 1), np.empty((2 * p, NCOEF)),
-            np.empty((2 * p, max(n_media, 1), NCOEF)))
+    return RayPieces(t0=np.empty(p), t1=np.empty(p), c=np.empty((p, NCOEF)), medium=np.empty(p, np.int64),
+                     bp=np.empty(2 * p), order=np.empty(p, np.int64), act=np.empty(p, np.int64),
+                     el_t0=np.empty(2 * p), el_t1=np.empty(2 * p), el_u0=np.empty(2 * p + 1),
+                     el_S=np.empty((2 * p, NCOEF)), el_sig=np.empty((2 * p, max(n_media, 1), NCOEF)))
+
+
+@njit(**NJIT_INLINE)
+def n_media(med):
+    return med.start.shape[0] - 1
+
+
+@njit(**NJIT_INLINE)
+def medium_blob(med, m):
+    """Medium m as the sweep reads a blob."""
+    return BlobRecord(med.centers, med.frames, med.weights, med.kernel[m], med.blobbiness[m], med.threshold[m])
 
 
 @njit(**NJIT_INLINE)
 def medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack):
     """Inside pieces of medium m on the ray (in scratch); returns (scratch, n_pieces)."""
-    centers, frames, weights, kernel, threshold = med[0], med[1], med[2], med[4], med[5]
-    n_cand = bvh_candidates(o, d, 0.0, tmax, med[15][m], med[10], med[11], med[12], med[13], med[14],
-                            stack, cand)
+    n_cand = bvh_candidates(o, d, 0.0, tmax, med.bvh, med.bvh.root[m], stack, cand)
     if n_cand == 0:
         return scratch, 0
-    scratch, n_out, _ = trace_blob(o, d, 0.0, tmax, centers, frames, weights, kernel[m], med[16][m], threshold[m],
-                                   tol_t, cand, n_cand, False, scratch)
+    scratch, n_out, _ = trace_blob(o, d, 0.0, tmax, medium_blob(med, m), tol_t, cand, n_cand, False, scratch)
     return scratch, n_out
+
+
+@njit(**NJIT_INLINE)
+def grow_ray_pieces(rp, n, need, n_med):
+    """A RayPieces with room for 2 * need pieces holding the first n pieces of rp."""
+    bigger = alloc_ray_pieces(2 * need, n_med)
+    bigger.t0[:n] = rp.t0[:n]
+    bigger.t1[:n] = rp.t1[:n]
+    bigger.c[:n] = rp.c[:n]
+    bigger.medium[:n] = rp.medium[:n]
+    return bigger
+
+
+@njit(**NJIT_INLINE)
+def piece_sigma_t(field_c, mode, threshold, scale, out):
+    """out = sigma_t's control values on a piece whose field has control values field_c (MODEL.md §4)."""
+    for q in range(NCOEF):
+        if mode == DENSITY_UNIFORM:
+            out[q] = scale
+        elif mode == DENSITY_EXCESS:
+            out[q] = scale * (field_c[q] - threshold)
+        else:
+            out[q] = scale * field_c[q]
 
 
 @njit(**NJIT)
 def collect_media(o, d, tmax, med, tol_t, scratch, rp, cand, stack):
     """Trace the ray through every medium; copy each inside piece, as sigma_t, into rp.
     Returns (scratch, rp, number of pieces)."""
-    threshold, mode, scale_m = med[5], med[6], med[7]
     n = 0
-    for m in range(med[3].shape[0] - 1):
+    for m in range(n_media(med)):
         scratch, n_out = medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack)
-        if n + n_out > rp[0].shape[0]:
-            bigger = alloc_ray_pieces(2 * (n + n_out), med[3].shape[0] - 1)
-            bigger[0][:n] = rp[0][:n]
-            bigger[1][:n] = rp[1][:n]
-            bigger[2][:n] = rp[2][:n]
-            bigger[3][:n] = rp[3][:n]
-            rp = bigger
-        o_t0, o_t1, o_c = scratch[10], scratch[11], scratch[12]
-        scale = scale_m[m]
+        if n + n_out > rp.t0.shape[0]:
+            rp = grow_ray_pieces(rp, n, n + n_out, n_media(med))
+        o_t0, o_t1, o_c = scratch.out_t0, scratch.out_t1, scratch.out_c
         for k in range(n_out):
-            rp[0][n] = o_t0[k]
-            rp[1][n] = o_t1[k]
-            for q in range(NCOEF):
-                if mode[m] == DENSITY_UNIFORM:
-                    rp[2][n, q] = scale
-                elif mode[m] == DENSITY_EXCESS:
-                    rp[2][n, q] = scale * (o_c[k, q] - threshold[m])
-                else:
-                    rp[2][n, q] = scale * o_c[k, q]
-            rp[3][n] = m
+            rp.t0[n] = o_t0[k]
+            rp.t1[n] = o_t1[k]
+            piece_sigma_t(o_c[k], med.mode[m], med.threshold[m], med.scale[m], rp.c[n])
+            rp.medium[n] = m
             n += 1
     return scratch, rp, n
 
@@ -74,11 +89,9 @@ def collect_media(o, d, tmax, med, tol_t, scratch, rp, cand, stack):
 def shadow_transmittance(x, l, tmax, med, tol_t, tau_stop, scratch, cand, stack):
     """T_l = exp(-tau) from x along l up to tmax through every medium; stops once tau > tau_stop."""
     tau = 0.0
-    for m in range(med[3].shape[0] - 1):
+    for m in range(n_media(med)):
         scratch, n_out = medium_pieces(x, l, tmax, med, m, tol_t, scratch, cand, stack)
-        tau += pieces_optical_depth(n_out, med[6][m], med[5][m], med[7][m], scratch)
+        tau += pieces_optical_depth(n_out, med.mode[m], med.threshold[m], med.scale[m], scratch)
         if tau > tau_stop:
             break
     return scratch, math.exp(-tau)
-
-

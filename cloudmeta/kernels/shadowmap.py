@@ -6,18 +6,19 @@ medium and the map keeps its inside pieces: sigma_t as Bernstein control values 
 running sum of their exact integrals. The optical depth towards the light at depth s on a texel's ray is
 therefore exact in depth; across texels it is interpolated bilinearly.
 
-One map's arrays: geo (13,) = origin (3), e1 (3), e2 (3), ray direction -l (3), texel size; res (texels
-per side); start (res^2 + 1,) offsets of each texel's pieces; t0, t1 (P,), c (P, 7) sigma_t, cum (P,) the
-running integral within the texel, reach (P,) the running max of t1 within the texel. Several maps are
-concatenated (``base`` gives each map's first texel, ``start`` holds global piece offsets).
+The maps are one records.ShadowMaps (cloudmeta.pack.build_shadow_maps). One map's arrays: geo (13,) =
+origin (3), e1 (3), e2 (3), ray direction -l (3), texel size; res (texels per side); start (res^2 + 1,)
+offsets of each texel's pieces; t0, t1 (P,), c (P, 7) sigma_t, cum (P,) the running integral within the
+texel, reach (P,) the running max of t1 within the texel. Several maps are concatenated (``base`` gives
+each map's first texel, ``start`` holds global piece offsets).
 """
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from ..config import NJIT, NJIT_INLINE, NJIT_PARALLEL
+from ..config import NJIT, NJIT_INLINE
 from .bernstein import bernstein_cumulative, bernstein_mean
 from .media import alloc_ray_pieces, collect_media
-from .sweep import alloc_scratch
+from .sweep import alloc_scratch, insertion_argsort
 
 
 @njit(**NJIT)
@@ -27,62 +28,53 @@ def _texel_origin(geo, i, j, o):
 
 
 @njit(**NJIT)
-def _order_by_start(t0, m, order):
-    """order[:m] = the indices of t0[:m] by increasing value (insertion sort: a texel has few pieces,
-    mostly in order already)."""
-    for r in range(m):
-        order[r] = r
-        q = r
-        while q > 0 and t0[order[q - 1]] > t0[r]:
-            order[q] = order[q - 1]
-            q -= 1
-        order[q] = r
-
-
-@njit(**NJIT_PARALLEL)
-def trace_texels(geo, res, med, tol_t, n_chunks, cap, counts, used, t0, t1, c, cum, reach):
-    """Trace every texel's ray, once. Chunk ch writes the pieces of its texels, texel after texel, to rows
-    [ch * cap, ch * cap + used[ch]) of t0, t1, c, cum, reach; counts[k] is the number of pieces of texel
-    k. Every piece is counted even past cap, so used[ch] > cap tells the caller to call again with a
-    larger cap (the chunks' rows are then incomplete)."""
+def trace_texel_chunk(geo, res, med, tol_t, chunk, n_chunks, cap, counts, used, rows):
+    """Trace the rays of chunk ``chunk`` of n_chunks of the texels, once, writing their pieces, texel
+    after texel, to rows [chunk * cap, chunk * cap + used[chunk]) of ``rows`` (a records.MapPieces);
+    counts[k] is the number of pieces of texel k. Every piece is counted even past cap, so used[chunk] >
+    cap tells the caller to call again with a larger cap (the chunk's rows are then incomplete). nogil,
+    with its own work arrays: cloudmeta.pack runs the chunks on several threads."""
     n = res * res
-    for chunk in prange(n_chunks):
-        scratch = alloc_scratch(64)
-        rp = alloc_ray_pieces(64, med[3].shape[0] - 1)
-        cand = np.empty(max(med[0].shape[0], 1), np.int64)
-        stack = np.empty(128, np.int64)
-        order = np.empty(64, np.int64)
-        o = np.empty(3)
-        d = np.empty(3)
-        for q in range(3):
-            d[q] = geo[9 + q]
-        row0 = chunk * cap
-        n_used = 0
-        for k in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
-            _texel_origin(geo, k // res, k % res, o)
-            scratch, rp, m = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
-            counts[k] = m
-            if n_used + m > cap:
-                n_used += m
-                continue
+    scratch = alloc_scratch(64)
+    rp = alloc_ray_pieces(64, med.start.shape[0] - 1)
+    cand = np.empty(max(med.centers.shape[0], 1), np.int64)
+    stack = np.empty(128, np.int64)
+    order = np.empty(64, np.int64)
+    o = np.empty(3)
+    d = np.empty(3)
+    for q in range(3):
+        d[q] = geo[9 + q]
+    n_used = 0
+    for k in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
+        _texel_origin(geo, k // res, k % res, o)
+        scratch, rp, m = collect_media(o, d, np.inf, med, tol_t, scratch, rp, cand, stack)
+        counts[k] = m
+        if n_used + m <= cap:
             # pieces of several media come medium by medium: order them by t0 for the lookup
             if m > order.shape[0]:
                 order = np.empty(2 * m, np.int64)
-            _order_by_start(rp[0], m, order)
-            acc = 0.0
-            far = -np.inf
-            for r in range(m):
-                i = order[r]
-                p = row0 + n_used + r
-                t0[p] = rp[0][i]
-                t1[p] = rp[1][i]
-                c[p, :] = rp[2][i]
-                acc += (t1[p] - t0[p]) * bernstein_mean(c[p])
-                cum[p] = acc
-                far = max(far, t1[p])
-                reach[p] = far
-            n_used += m
-        used[chunk] = n_used
+            insertion_argsort(rp.t0, order, m)
+            _store_texel(rp, m, order, chunk * cap + n_used, rows)
+        n_used += m
+    used[chunk] = n_used
+
+
+@njit(**NJIT)
+def _store_texel(rp, m, order, p0, rows):
+    """The texel's m pieces, in the given order, into rows p0 .. p0 + m - 1 of rows (records.MapPieces),
+    with their running integral and running reach."""
+    acc = 0.0
+    far = -np.inf
+    for r in range(m):
+        i = order[r]
+        p = p0 + r
+        rows.t0[p] = rp.t0[i]
+        rows.t1[p] = rp.t1[i]
+        rows.c[p, :] = rp.c[i]
+        acc += (rows.t1[p] - rows.t0[p]) * bernstein_mean(rows.c[p])
+        rows.cum[p] = acc
+        far = max(far, rows.t1[p])
+        rows.reach[p] = far
 
 
 @njit(**NJIT)
@@ -114,8 +106,13 @@ def texel_optical_depth(s, a, b, t0, t1, c, cum, reach):
 
 
 @njit(**NJIT_INLINE)
-def map_optical_depth(x, geo, res, base, start, t0, t1, c, cum, reach):
-    """Optical depth from x towards the light of one map: exact along texel rays, bilinear across them."""
+def map_optical_depth(x, maps, mi):
+    """Optical depth from x towards the light of map mi of ``maps`` (a records.ShadowMaps): exact along
+    texel rays, bilinear across them."""
+    geo = maps.geo[mi]
+    res = maps.res[mi]
+    base = maps.base[mi]
+    start = maps.start
     px = x[0] - geo[0]
     py = x[1] - geo[1]
     pz = x[2] - geo[2]
@@ -134,5 +131,6 @@ def map_optical_depth(x, geo, res, base, start, t0, t1, c, cum, reach):
             j = min(max(j0 + dj, 0), res - 1)
             wj = fv if dj == 1 else 1.0 - fv
             k = base + i * res + j
-            tau += wi * wj * texel_optical_depth(s, start[k], start[k + 1], t0, t1, c, cum, reach)
+            tau += wi * wj * texel_optical_depth(s, start[k], start[k + 1], maps.t0, maps.t1, maps.c, maps.cum,
+                                                 maps.reach)
     return tau

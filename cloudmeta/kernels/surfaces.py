@@ -3,9 +3,7 @@ shadow ray is blocked, and the normal at a hit.
 
 Each surface is its own blob, drawn as its isosurface F = T: the fields of two surfaces do not add. An
 opaque surface needs only the first root of each blob (sweep.first_entry), never the segments after it.
-The surfaces are packed as one ``surf`` tuple (see cloudmeta.render.PackedSurfaces.args):
-(centers, frames, weights, start, kernel, threshold, blobbiness, colour,
- node_box, node_a, node_b, node_n, items, root) -- every surface's balls, per-surface parameters, its BVH.
+The surfaces are one records.Surfaces (cloudmeta.pack.pack_surfaces).
 """
 import math
 
@@ -15,6 +13,7 @@ from numba import njit
 from ..config import NJIT, NJIT_INLINE
 from .bvh import bvh_candidates, bvh_point_candidates
 from .metaball import ball_gradient
+from .records import BlobRecord
 from .sweep import first_entry
 
 #: a surface point's shadow ray starts this many root tolerances off the surface, along the normal: the
@@ -25,19 +24,24 @@ SHADOW_OFFSET = 8.0
 
 @njit(**NJIT_INLINE)
 def n_surfaces(surf):
-    return surf[3].shape[0] - 1
+    return surf.start.shape[0] - 1
+
+
+@njit(**NJIT_INLINE)
+def surface_blob(surf, s):
+    """Surface s as the sweep reads a blob."""
+    return BlobRecord(surf.centers, surf.frames, surf.weights, surf.kernel[s], surf.blobbiness[s],
+                      surf.threshold[s])
 
 
 @njit(**NJIT)
 def surface_entry(o, d, tmax, surf, s, tol_t, scratch, cand, stack):
     """Where the ray o + t d, t in [0, tmax], first is inside surface s: 0 if it starts inside, inf if
     never. Returns (scratch, t)."""
-    n_cand = bvh_candidates(o, d, 0.0, tmax, surf[13][s], surf[8], surf[9], surf[10], surf[11], surf[12],
-                            stack, cand)
+    n_cand = bvh_candidates(o, d, 0.0, tmax, surf.bvh, surf.bvh.root[s], stack, cand)
     if n_cand == 0:
         return scratch, np.inf
-    return first_entry(o, d, 0.0, tmax, surf[0], surf[1], surf[2], surf[4][s], surf[6][s], surf[5][s], tol_t,
-                       cand, n_cand, scratch)
+    return first_entry(o, d, 0.0, tmax, surface_blob(surf, s), tol_t, cand, n_cand, scratch)
 
 
 @njit(**NJIT)
@@ -70,10 +74,10 @@ def surfaces_block(x, l, tmax, surf, tol_t, scratch, cand, stack):
 def surface_normal(x, d, surf, s, cand, stack, n_out):
     """n = -grad F / |grad F| of surface s at x (the analytic gradient, MODEL.md §6), into n_out; where the
     gradient vanishes (a camera inside a surface, at a critical point) n = -d, facing the viewer."""
-    n_cand = bvh_point_candidates(x, surf[13][s], surf[8], surf[9], surf[10], surf[11], surf[12], stack, cand)
-    centers, frames, weights = surf[0], surf[1], surf[2]
-    kernel = surf[4][s]
-    b = surf[6][s]
+    n_cand = bvh_point_candidates(x, surf.bvh, surf.bvh.root[s], stack, cand)
+    centers, frames, weights = surf.centers, surf.frames, surf.weights
+    kernel = surf.kernel[s]
+    b = surf.blobbiness[s]
     gx = 0.0
     gy = 0.0
     gz = 0.0

@@ -14,6 +14,7 @@ from numba import njit
 from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF, _casteljau_rows, bernstein_mean, subdivide
 from .clipping import STACK_DEPTH, clip_roots
+from .records import SweepScratch
 from .metaball import (DONE, MIDDLE, PAIR, chord, control_values, is_piecewise, keep_piece, next_piece,
                        nishimura_inner_values, pair_ends, piece_plan, piece_values)
 
@@ -33,19 +34,20 @@ DENSITY_UNIFORM = 2
 def alloc_scratch(capacity):
     """Per-thread work arrays for rays that meet at most ``capacity`` chords."""
     p = max(capacity, 1)
-    return (np.empty(p), np.empty(p), np.empty((p, NCOEF)),            # chords: t0, t1, control values
-            np.empty(2 * p), np.empty(p, np.int64), np.empty(p, np.int64),  # breakpoints, start order, active
-            np.empty(2 * p), np.empty(2 * p), np.empty((2 * p, NCOEF)), np.empty(2 * p),  # intervals + magnitude
-            np.empty(PIECES_PER_INTERVAL * 2 * p), np.empty(PIECES_PER_INTERVAL * 2 * p),
-            np.empty((PIECES_PER_INTERVAL * 2 * p, NCOEF)),                # inside pieces: t0, t1, F
-            np.empty(ROOTS_PER_INTERVAL * 2 * p),                           # transitions
-            np.empty(STACK_DEPTH), np.empty(STACK_DEPTH), np.empty((STACK_DEPTH, NCOEF)),  # clipping stack
-            np.empty((2, NCOEF)), np.empty(NCOEF), np.empty(16), np.empty(16, np.bool_))   # work rows, g, roots
+    n_pieces = PIECES_PER_INTERVAL * 2 * p
+    return SweepScratch(
+        chord_t0=np.empty(p), chord_t1=np.empty(p), chord_c=np.empty((p, NCOEF)),
+        bp=np.empty(2 * p), order=np.empty(p, np.int64), act=np.empty(p, np.int64),
+        iv_t0=np.empty(2 * p), iv_t1=np.empty(2 * p), iv_c=np.empty((2 * p, NCOEF)), iv_mag=np.empty(2 * p),
+        out_t0=np.empty(n_pieces), out_t1=np.empty(n_pieces), out_c=np.empty((n_pieces, NCOEF)),
+        roots=np.empty(ROOTS_PER_INTERVAL * 2 * p),
+        st_lo=np.empty(STACK_DEPTH), st_hi=np.empty(STACK_DEPTH), st_c=np.empty((STACK_DEPTH, NCOEF)),
+        work=np.empty((2, NCOEF)), g=np.empty(NCOEF), loc=np.empty(16), rising=np.empty(16, np.bool_))
 
 
 @njit(**NJIT)
 def capacity_of(scratch):
-    return scratch[0].shape[0]
+    return scratch.chord_t0.shape[0]
 
 
 #: below this many items an insertion sort beats the heap sort
@@ -55,22 +57,31 @@ SMALL_SORT = 24
 @njit(**NJIT)
 def heap_argsort(keys, idx, n):
     """Sort idx[:n] (a permutation of 0..n-1, filled here) by keys, in place, without allocating."""
+    if n <= SMALL_SORT:
+        insertion_argsort(keys, idx, n)
+        return
     for i in range(n):
         idx[i] = i
-    if n <= SMALL_SORT:
-        for i in range(1, n):
-            v = idx[i]
-            j = i - 1
-            while j >= 0 and keys[idx[j]] > keys[v]:
-                idx[j + 1] = idx[j]
-                j -= 1
-            idx[j + 1] = v
-        return
     for start in range(n // 2 - 1, -1, -1):
         _sift(keys, idx, start, n)
     for end in range(n - 1, 0, -1):
         idx[0], idx[end] = idx[end], idx[0]
         _sift(keys, idx, 0, end)
+
+
+@njit(**NJIT_INLINE)
+def insertion_argsort(keys, idx, n):
+    """idx[:n] = the indices 0..n-1 ordered by keys (stable), without allocating: for few items, or items
+    mostly in order already."""
+    for i in range(n):
+        idx[i] = i
+    for i in range(1, n):
+        v = idx[i]
+        j = i - 1
+        while j >= 0 and keys[idx[j]] > keys[v]:
+            idx[j + 1] = idx[j]
+            j -= 1
+        idx[j + 1] = v
 
 
 @njit(**NJIT)
@@ -121,8 +132,9 @@ def _sift_values(a, root, n):
 
 
 @njit(**NJIT)
-def gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, cand, n_cand, scratch):
-    """Chords of the candidate balls that overlap [tmin, tmax], with their control values.
+def gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch):
+    """Chords of the candidate balls (cand[:n_cand]) of ``blob`` (a records.BlobRecord) that overlap
+    [tmin, tmax], with their control values.
 
     wyvill6 and murakami4 give one exact curve per chord; nishimura and blinn (``blobbiness`` b) give
     several pieces per chord, each a degree-6 curve within 1e-12 |q| of the kernel: the loop of
@@ -132,7 +144,9 @@ def gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness
     Returns how many curves there are; only the first ``capacity`` are written, so a larger count tells
     the caller to grow the scratch and call again.
     """
-    p_t0, p_t1, p_c = scratch[0], scratch[1], scratch[2]
+    p_t0, p_t1, p_c = scratch.chord_t0, scratch.chord_t1, scratch.chord_c
+    centers, frames, weights = blob.centers, blob.frames, blob.weights
+    kernel, blobbiness = blob.kernel, blob.blobbiness
     cap = p_t0.shape[0]
     piecewise = is_piecewise(kernel)
     n = 0
@@ -245,9 +259,9 @@ def composite(n_p, tmin, tmax, scratch):
     chord keeps the rest of its curve, [ta, t1], in place of its control values (p_t0 becomes ta), so
     one de Casteljau split per chord and interval gives both the part on the interval and the rest.
     """
-    p_t0, p_t1, p_c = scratch[0], scratch[1], scratch[2]
-    bp, order, act = scratch[3], scratch[4], scratch[5]
-    iv_t0, iv_t1, iv_c, iv_mag = scratch[6], scratch[7], scratch[8], scratch[9]
+    p_t0, p_t1, p_c = scratch.chord_t0, scratch.chord_t1, scratch.chord_c
+    bp, order, act = scratch.bp, scratch.order, scratch.act
+    iv_t0, iv_t1, iv_c, iv_mag = scratch.iv_t0, scratch.iv_t1, scratch.iv_c, scratch.iv_mag
     sort_breakpoints(p_t0, p_t1, n_p, bp, order)
     n_act = 0
     i_s = 0
@@ -319,10 +333,10 @@ def inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch):
     With first_only (opaque surfaces) the sweep stops where the ray is first inside: one transition,
     that t (tmin itself when the ray starts inside), and no pieces.
     """
-    iv_t0, iv_t1, iv_c, iv_mag = scratch[6], scratch[7], scratch[8], scratch[9]
-    o_t0, o_t1, o_c, roots = scratch[10], scratch[11], scratch[12], scratch[13]
-    st_lo, st_hi, st_c, work, g = scratch[14], scratch[15], scratch[16], scratch[17], scratch[18]
-    loc, rising = scratch[19], scratch[20]
+    iv_t0, iv_t1, iv_c, iv_mag = scratch.iv_t0, scratch.iv_t1, scratch.iv_c, scratch.iv_mag
+    o_t0, o_t1, o_c, roots = scratch.out_t0, scratch.out_t1, scratch.out_c, scratch.roots
+    st_lo, st_hi, st_c, work, g = scratch.st_lo, scratch.st_hi, scratch.st_c, scratch.work, scratch.g
+    loc, rising = scratch.loc, scratch.rising
     n_out = 0
     n_roots = 0
     inside = False
@@ -393,7 +407,7 @@ def density_mean(c, mode, threshold):
 @njit(**NJIT)
 def pieces_optical_depth(n_out, mode, threshold, scale, scratch):
     """tau over the inside pieces: scale times the sum of length x mean density, exact."""
-    o_t0, o_t1, o_c = scratch[10], scratch[11], scratch[12]
+    o_t0, o_t1, o_c = scratch.out_t0, scratch.out_t1, scratch.out_c
     tau = 0.0
     for k in range(n_out):
         tau += (o_t1[k] - o_t0[k]) * density_mean(o_c[k], mode, threshold)
@@ -401,28 +415,26 @@ def pieces_optical_depth(n_out, mode, threshold, scale, scratch):
 
 
 @njit(**NJIT)
-def trace_blob(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, threshold, tol_t, cand, n_cand,
-               first_only, scratch):
-    """Chords, composite and inside pieces of one ray; grows the scratch when the ray meets more chords
-    than it holds. Returns (scratch, n_pieces, n_transitions)."""
-    n_p = gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, cand, n_cand, scratch)
+def trace_blob(o, d, tmin, tmax, blob, tol_t, cand, n_cand, first_only, scratch):
+    """Chords, composite and inside pieces of one ray through ``blob`` (a records.BlobRecord; its balls
+    cand[:n_cand]); grows the scratch when the ray meets more chords than it holds.
+    Returns (scratch, n_pieces, n_transitions)."""
+    n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p > capacity_of(scratch):
         scratch = alloc_scratch(2 * n_p)
-        gather_chords(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, cand, n_cand, scratch)
+        gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p == 0:
         return scratch, 0, 0
     n_iv = composite(n_p, tmin, tmax, scratch)
-    n_out, n_roots = inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch)
+    n_out, n_roots = inside_pieces(n_iv, blob.threshold, tmin, tmax, tol_t, first_only, scratch)
     return scratch, n_out, n_roots
 
 
 @njit(**NJIT)
-def first_entry(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, threshold, tol_t, cand, n_cand,
-                scratch):
+def first_entry(o, d, tmin, tmax, blob, tol_t, cand, n_cand, scratch):
     """Where the ray is first inside the blob (F >= T) within [tmin, tmax]: the first entering root,
     tmin if the ray starts inside, inf if it never enters. Returns (scratch, t)."""
-    scratch, _, n_tr = trace_blob(o, d, tmin, tmax, centers, frames, weights, kernel, blobbiness, threshold,
-                                  tol_t, cand, n_cand, True, scratch)
+    scratch, _, n_tr = trace_blob(o, d, tmin, tmax, blob, tol_t, cand, n_cand, True, scratch)
     if n_tr == 0:
         return scratch, np.inf
-    return scratch, scratch[13][0]
+    return scratch, scratch.roots[0]

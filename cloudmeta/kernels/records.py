@@ -1,0 +1,96 @@
+"""The named records the kernels read: the packed scene, the quadrature rule and the work arrays.
+
+Every record is a ``collections.namedtuple`` of arrays and scalars. numba compiles them in nopython mode
+and resolves ``media.threshold[m]`` at compile time, so a record costs nothing at run time, and a new
+field shifts no index. They are built once per render by cloudmeta.pack (the scene) or by the ``alloc_*``
+kernels (the work arrays); the kernels never build scene records. Arrays are fresh, writable and
+C-contiguous with the dtypes given here, so that numba sees one type per record and compiles once.
+
+Shapes: N balls, M media, S surfaces, L lights, K BVH nodes, P pieces, C = 7 control values (degree 6).
+"""
+from collections import namedtuple
+
+#: a merged bounding-volume hierarchy over the balls of several blobs (kernels.bvh): node_box (K, 6) =
+#: [lo, hi]; a leaf has node_n > 0 and holds items[node_a : node_a + node_n]; an inner node has children
+#: node_a, node_b; root (M,) is each blob's root node
+BVH = namedtuple("BVH", ["node_box", "node_a", "node_b", "node_n", "items", "root"])
+
+#: one blob as the sweep reads it (kernels.sweep): the balls' centers (N, 3), frames (N, 3, 3) and
+#: weights (N,), possibly shared with other blobs, and this blob's kernel, blobbiness and threshold
+BlobRecord = namedtuple("BlobRecord", ["centers", "frames", "weights", "kernel", "blobbiness", "threshold"])
+
+#: rays of the public API (kernels.trace): origins (R, 3), unit directions (R, 3), t_max (R,)
+Rays = namedtuple("Rays", ["origins", "directions", "t_max"])
+
+#: what kernels.trace.trace_rays writes per ray: tau (R,), n_roots (R,), roots (R, cap), n_seg (R,),
+#: segs (R, cap, 2); the counts are true counts, the lists hold the first cap
+TraceOut = namedtuple("TraceOut", ["tau", "n_roots", "roots", "n_seg", "segs"])
+
+#: every medium's balls in one set of arrays (MODEL.md §4): centers (N, 3), frames (N, 3, 3),
+#: weights (N,), start (M + 1,) ball offsets; per medium kernel, threshold, blobbiness (blinn's b),
+#: mode (sweep.DENSITY_*), scale (sigma_t = scale * rho), albedo, phase (M, 4) = kind, g1, g2, w
+#: (kernels.optics); bvh a BVH
+Media = namedtuple("Media", ["centers", "frames", "weights", "start", "kernel", "threshold", "blobbiness",
+                             "mode", "scale", "albedo", "phase", "bvh"])
+
+#: every opaque surface's balls (MODEL.md §6): as Media, with colour (S, 3) linear RGB in place of the
+#: density and scattering parameters
+Surfaces = namedtuple("Surfaces", ["centers", "frames", "weights", "start", "kernel", "threshold",
+                                   "blobbiness", "colour", "bvh"])
+
+#: shadow maps of directional lights (kernels.shadowmap): map_of (L,) the light's map or -1 for exact
+#: shadow rays; per map geo (13,) rows, res, base (its first texel); start (texels + 1,) piece offsets;
+#: per piece t0, t1, c (P, C) sigma_t, cum the running integral, reach the running max of t1
+ShadowMaps = namedtuple("ShadowMaps", ["map_of", "geo", "res", "base", "start", "t0", "t1", "c", "cum",
+                                       "reach"])
+
+#: the pieces of the texels of shadow maps while they are traced (kernels.shadowmap.trace_texel_chunk):
+#: per piece t0, t1, c (P, C) sigma_t, cum, reach, as in ShadowMaps
+MapPieces = namedtuple("MapPieces", ["t0", "t1", "c", "cum", "reach"])
+
+#: the lights (MODEL.md §5): kind (L,) radiance.DIRECTIONAL or POINT; vec (L, 3) the direction towards a
+#: directional light, or a point light's position; rgb (L, 3) irradiance or intensity; maps ShadowMaps
+Lights = namedtuple("Lights", ["kind", "vec", "rgb", "maps"])
+
+#: what a camera ray sees: Media, Surfaces, Lights, and the background and ambient radiance (3,)
+SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient"])
+
+#: the in-scattering quadrature (cloudmeta.pack.quadrature): the step rule, 7 Gauss and 15 Kronrod nodes
+#: on [0, 1] with their Lagrange bases at a fine Gauss rule (fine_y, fine_w); where the Gauss nodes and
+#: the other 8 sit among the 15 (gauss_col, kronrod_col); tail (2, 7) maps J at the Gauss nodes to its two
+#: highest Legendre coefficients. Then the render's quality settings (cloudmeta.render.resolve_quality):
+#: max_tau, max_length, max_angle, cutoff, u_stop = -log(cutoff) (the view optical depth past which
+#: nothing is shaded; inf for cutoff 0), tol_t (the root tolerance on t, absolute), tolerance
+Quadrature = namedtuple("Quadrature", ["gauss_x", "gauss_lag", "kronrod_x", "kronrod_lag", "gauss_col",
+                                       "kronrod_col", "tail", "fine_y", "fine_w", "max_tau", "max_length",
+                                       "max_angle", "cutoff", "u_stop", "tol_t", "tolerance"])
+
+#: a pinhole camera (MODEL.md §8): position, forward, and right / up scaled to the image plane's
+#: half-extent at distance 1 (3,) each; the image size, samples per pixel and the jitter seed
+Camera = namedtuple("Camera", ["position", "forward", "right", "up", "width", "height", "spp", "seed"])
+
+#: one blob's sweep along a ray (kernels.sweep.alloc_scratch), reused ray after ray: the chords (t0, t1,
+#: control values); the sweep's breakpoints, start order and active list; the composite intervals (t0,
+#: t1, control values, magnitude); the inside pieces (t0, t1, F); the transitions; the clipping stack
+#: (lo, hi, control values); clipping's work rows, g = F - T on an interval, and its roots (loc, rising)
+SweepScratch = namedtuple("SweepScratch", ["chord_t0", "chord_t1", "chord_c", "bp", "order", "act", "iv_t0",
+                                           "iv_t1", "iv_c", "iv_mag", "out_t0", "out_t1", "out_c", "roots",
+                                           "st_lo", "st_hi", "st_c", "work", "g", "loc", "rising"])
+
+#: the pieces of every medium on one camera ray (kernels.media.alloc_ray_pieces): t0, t1, sigma_t
+#: control values, medium; the interval sweep's breakpoints, start order and active list; and the
+#: ray's elementary intervals (between consecutive piece ends): el_t0, el_t1, el_u0 the optical depth
+#: from the ray's start to el_t0, el_S sigma_t of all media, el_sig (2P, M, C) of each
+RayPieces = namedtuple("RayPieces", ["t0", "t1", "c", "medium", "bp", "order", "act", "el_t0", "el_t1", "el_u0",
+                                     "el_S", "el_sig"])
+
+#: small per-ray work vectors of the radiance kernels (kernels.radiance.alloc_node_work): light (L, 4) =
+#: per light l . v and E_l T_l (r, g, b) at the current node; pos and l_dir at a node; x, normal and
+#: x_off (x lifted off the surface) at a surface hit; node_w the product-integration weights of a step;
+#: j_val (3, nodes) J at the nodes of a step; split_u and split_depth the parts of a step still to do
+NodeWork = namedtuple("NodeWork", ["light", "pos", "l_dir", "x", "normal", "x_off", "node_w", "j_val", "split_u",
+                                   "split_depth"])
+
+#: everything one thread's camera rays reuse: SweepScratch (grows), RayPieces (grows), the BVH's
+#: candidate list and walk stack, NodeWork
+RayWork = namedtuple("RayWork", ["scratch", "pieces", "cand", "stack", "nodes"])

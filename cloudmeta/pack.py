@@ -1,0 +1,272 @@
+"""Pack a validated scene into the named records the kernels read (cloudmeta.kernels.records).
+
+One job per function: the media, the surfaces and the lights into their records (with every blob's BVH
+merged into one); the shadow maps of directional lights (traced once, traced again where the single
+pass overflows); the camera's basis; and the G7-K15 quadrature rule with its Lagrange bases. Every array
+is fresh, writable and C-contiguous with a fixed dtype, also when a scene has no media, surfaces or
+lights: numba then sees the same types and compiles once.
+"""
+from __future__ import annotations
+
+import math
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+
+from .engine import DENSITY_MODES, n_chunks
+from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
+from .kernels.radiance import DIRECTIONAL, POINT
+from .kernels.records import (BVH, Camera, Lights, MapPieces, Media, Quadrature, SceneRecords, ShadowMaps,
+                              Surfaces)
+from .kernels.shadowmap import trace_texel_chunk
+from .scene import DirectionalLight
+
+PHASES = {"isotropic": ISOTROPIC, "hg": HG, "double_hg": DOUBLE_HG, "rayleigh": RAYLEIGH}
+#: map pieces reserved per texel for the single tracing pass (a map that needs more is traced again)
+MAP_PIECES_PER_TEXEL = 4
+
+
+# --- media, surfaces, lights -------------------------------------------------------------------------------
+
+def merge_bvhs(blobs, starts):
+    """One records.BVH for several blobs: node and item indices shifted, one root per blob."""
+    parts, roots, n_nodes = [], [], 0
+    for blob, first in zip(blobs, starts):
+        box, a, b, n, items = blob.bvh
+        leaf = n > 0
+        parts.append((box, np.where(leaf, a + first, a + n_nodes), np.where(leaf, b, b + n_nodes), n,
+                      items + first))
+        roots.append(n_nodes)
+        n_nodes += len(box)
+    if not parts:
+        return BVH(np.zeros((1, 6)), np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                   np.zeros(0, np.int64), np.zeros(0, np.int64))
+    cat = [np.ascontiguousarray(np.concatenate([p[k] for p in parts])) for k in range(5)]
+    return BVH(*cat, np.array(roots, np.int64))
+
+
+def _pack_blobs(blobs):
+    """The fields every packing shares: balls concatenated, ball offsets, per-blob kernel, threshold,
+    blobbiness, and the merged BVH."""
+    counts = [len(b) for b in blobs]
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    cat = lambda attr, empty: (np.ascontiguousarray(np.concatenate([getattr(b, attr) for b in blobs]))  # noqa: E731
+                               if blobs else empty)
+    return dict(centers=cat("centers", np.zeros((0, 3))), frames=cat("frames", np.zeros((0, 3, 3))),
+                weights=cat("weights", np.zeros(0)), start=start,
+                kernel=np.array([b.kernel_id for b in blobs], np.int64),
+                threshold=np.array([b.threshold for b in blobs], np.float64),
+                blobbiness=np.array([b.blobbiness for b in blobs], np.float64),
+                bvh=merge_bvhs(blobs, start[:-1]))
+
+
+def pack_media(media) -> Media:
+    """Every medium of the scene in one records.Media."""
+    phase = np.zeros((len(media), 4))
+    for i, m in enumerate(media):
+        p = m.phase
+        g1 = p.g if p.type == "hg" else p.g1
+        phase[i] = (PHASES[p.type], g1, p.g2, p.w)
+    return Media(**_pack_blobs([m.blob for m in media]),
+                 mode=np.array([DENSITY_MODES[m.density.mode] for m in media], np.int64),
+                 scale=np.array([m.density.scale for m in media], np.float64),
+                 albedo=np.array([m.albedo for m in media], np.float64), phase=phase)
+
+
+def pack_surfaces(surfaces) -> Surfaces:
+    """Every opaque surface of the scene in one records.Surfaces."""
+    return Surfaces(**_pack_blobs([s.blob for s in surfaces]),
+                    colour=np.array([s.color for s in surfaces], np.float64).reshape(-1, 3))
+
+
+def no_shadow_maps(n_lights) -> ShadowMaps:
+    """Exact shadow rays towards every light: no map (empty arrays of the maps' dtypes)."""
+    return ShadowMaps(np.full(n_lights, -1, np.int64), np.zeros((0, 13)), np.zeros(0, np.int64),
+                      np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 7)),
+                      np.zeros(0), np.zeros(0))
+
+
+def pack_lights(lights, maps=None) -> Lights:
+    """The lights in one records.Lights; ``maps`` from build_shadow_maps, or None for exact shadow rays
+    towards every light."""
+    kind = np.array([DIRECTIONAL if isinstance(l, DirectionalLight) else POINT for l in lights], np.int64).reshape(-1)
+    vec = np.array([l.direction if isinstance(l, DirectionalLight) else l.position for l in lights],
+                   np.float64).reshape(-1, 3)
+    rgb = np.array([l.irradiance if isinstance(l, DirectionalLight) else l.intensity for l in lights],
+                   np.float64).reshape(-1, 3)
+    return Lights(kind, vec, rgb, no_shadow_maps(len(lights)) if maps is None else maps)
+
+
+def media_bbox(scene):
+    """The box [lo, hi] that holds every medium."""
+    boxes = [m.blob.bbox for m in scene.media]
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
+def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
+    """The scene as the radiance kernels read it; with ``render.shadows: map`` (and media), a shadow map
+    of ``shadow_map_resolution`` texels per side for each directional light."""
+    med = pack_media(scene.media)
+    maps = None
+    if scene.render.shadows == "map" and scene.media:
+        lo, hi = media_bbox(scene)
+        maps = build_shadow_maps(scene.lights, med, lo, hi, shadow_map_resolution, quad.tol_t)
+    # fresh writable copies: numba types read-only arrays apart, and a second type means a second compile
+    ambient = np.zeros(3) if scene.ambient is None else np.array(scene.ambient, np.float64)
+    return SceneRecords(med, pack_surfaces(scene.surfaces), pack_lights(scene.lights, maps),
+                        np.array(scene.background, np.float64), ambient)
+
+
+# --- shadow maps ------------------------------------------------------------------------------------------
+
+def build_shadow_maps(lights, med, lo, hi, resolution, tol_t):
+    """A shadow map per directional light over the bounding sphere of the box [lo, hi]
+    (cloudmeta.kernels.shadowmap), as one records.ShadowMaps; None without directional lights."""
+    centre = 0.5 * (lo + hi)
+    radius = 0.5 * float(np.linalg.norm(hi - lo)) * 1.01
+    map_of = np.full(len(lights), -1, np.int64)
+    geos, parts, bases, offset = [], [], [], 0
+    for i, light in enumerate(lights):
+        if not isinstance(light, DirectionalLight):
+            continue
+        geo = _map_geometry(np.asarray(light.direction, np.float64), centre, radius, resolution)
+        start, arrays = _trace_map(geo, resolution, med, tol_t)
+        map_of[i] = len(geos)
+        geos.append(geo)
+        bases.append(offset)
+        parts.append((start, arrays))
+        offset += resolution * resolution
+    if not geos:
+        return None
+    piece_offsets = np.cumsum([0] + [int(st[-1]) for st, _ in parts])
+    start = np.concatenate([st[:-1] + po for (st, _), po in zip(parts, piece_offsets)] + [[piece_offsets[-1]]])
+    cat = [np.ascontiguousarray(np.concatenate([a[k] for _, a in parts])) for k in range(5)]
+    return ShadowMaps(map_of, np.array(geos), np.full(len(geos), resolution, np.int64), np.array(bases, np.int64),
+                      start.astype(np.int64), *cat)
+
+
+def _map_geometry(l, centre, radius, resolution):
+    """geo (13,) of a map towards l: origin, e1, e2, the texel rays' direction -l, texel size."""
+    helper = np.array([1.0, 0, 0]) if abs(l[0]) < 0.9 else np.array([0, 1.0, 0])
+    e1 = np.cross(l, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(l, e1)
+    origin = centre + l * radius - (e1 + e2) * radius
+    return np.concatenate([origin, e1, e2, -l, [2 * radius / resolution]])
+
+
+def _trace_map(geo, resolution, med, tol_t):
+    """Every texel's pieces, traced once into per-chunk rows and packed texel after texel.
+    Returns (start (res^2 + 1,), (t0, t1, c, cum, reach))."""
+    n = resolution * resolution
+    chunks = n_chunks(n)
+    cap = MAP_PIECES_PER_TEXEL * (n // chunks + 1)
+    counts = np.zeros(n, np.int64)
+    used = np.zeros(chunks, np.int64)
+    while True:
+        rows = chunks * cap
+        arrays = MapPieces(np.empty(rows), np.empty(rows), np.empty((rows, 7)), np.empty(rows), np.empty(rows))
+
+        def chunk(ch, cap=cap, arrays=arrays):
+            trace_texel_chunk(geo, resolution, med, tol_t, ch, chunks, cap, counts, used, arrays)
+
+        with ThreadPoolExecutor(numba.get_num_threads()) as pool:  # nogil chunks, each with its own rows
+            list(pool.map(chunk, range(chunks)))
+        if used.max() <= cap:
+            break
+        cap = int(used.max())  # a dense map: the second pass fits
+    keep = np.concatenate([np.arange(ch * cap, ch * cap + used[ch]) for ch in range(chunks)])
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    return start, tuple(np.ascontiguousarray(a[keep]) for a in arrays)
+
+
+# --- camera -----------------------------------------------------------------------------------------------
+
+def camera_frame(camera):
+    """Unit forward, right and up vectors of the camera (MODEL.md §8: up is re-orthogonalised)."""
+    fwd = camera.look_at - camera.position
+    fwd = fwd / np.linalg.norm(fwd)
+    right = np.cross(fwd, camera.up)
+    right /= np.linalg.norm(right)
+    return fwd, right, np.cross(right, fwd)
+
+
+def camera_basis(camera, width, height):
+    """Forward, and right / up scaled to the image plane's half-extent at distance 1 (MODEL.md §8)."""
+    fwd, right, up = camera_frame(camera)
+    half_h = math.tan(math.radians(camera.fov) / 2)
+    return fwd, right * half_h * width / height, up * half_h
+
+
+def pack_camera(scene, seed) -> Camera:
+    """The scene's camera and image size as one records.Camera."""
+    w, h, spp = scene.image.width, scene.image.height, scene.image.spp
+    fwd, right, up = camera_basis(scene.camera, w, h)
+    return Camera(np.array(scene.camera.position, np.float64), fwd, right, up, w, h, spp, seed)
+
+
+# --- the quadrature of the in-scattering integral ----------------------------------------------------------
+
+def gauss_legendre(nodes):
+    """Nodes and weights on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+#: points of the fine rule that integrates e^-(h y) L_k(y) for the product weights (exact to rounding
+#: for steps of optical depth up to ~20)
+FINE_POINTS = 24
+#: the Gauss-Kronrod pair G7-K15 on [-1, 1], the non-negative half (QUADPACK's qk15): the Kronrod nodes
+#: with the Gauss nodes at odd positions and 0
+_K15_HALF = np.array([0.991455371120812639206854697526329, 0.949107912342758524526189684047851,
+                      0.864864423359769072789712788640926, 0.741531185599394439863864773280788,
+                      0.586087235467691130294144845693013, 0.405845151377397166906606412076961,
+                      0.207784955007898467600689403773245, 0.0])
+_G7_WEIGHTS_HALF = np.array([0.129484966168869693270611432679082, 0.279705391489276667901467771423780,
+                             0.381830050505118944950369775488975, 0.417959183673469387755102040816327])
+
+
+def _lagrange_at(x, y):
+    """(len(x), len(y)): the Lagrange basis of the nodes x sampled at the points y."""
+    basis = np.ones((len(x), len(y)))
+    for k in range(len(x)):
+        for j in range(len(x)):
+            if j != k:
+                basis[k] *= (y - x[j]) / (x[k] - x[j])
+    return basis
+
+
+def legendre_tail(x, w):
+    """(2, n): maps values at the n Gauss nodes x (weights w, on [0, 1]) to the two highest Legendre
+    coefficients c_{n-2}, c_{n-1} of their interpolant; the Gauss rule's discrete orthogonality makes
+    c_j = (2j + 1) sum_k w_k f_k P_j(2 x_k - 1) exact for j < n."""
+    n = len(x)
+    return np.array([(2 * j + 1) * w * np.polynomial.legendre.Legendre.basis(j)(2.0 * x - 1.0)
+                     for j in (n - 2, n - 1)])
+
+
+def quadrature_rule():
+    """The step rule of the in-scattering integral: 7 Gauss nodes, extended to the 15 Kronrod nodes where
+    the light is rough, with everything the kernel needs to weight e^-u times their interpolant exactly
+    (radiance._exp_weights). Returns (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col,
+    tail, fine_y, fine_w)."""
+    signed = np.concatenate([-_K15_HALF[:-1], _K15_HALF[::-1]])
+    kronrod_x = 0.5 * (1.0 + signed)                       # increasing on [0, 1]
+    is_gauss = np.zeros(15, bool)
+    is_gauss[[1, 3, 5, 7, 9, 11, 13]] = True               # every other node, from the second
+    gauss_col = np.flatnonzero(is_gauss).astype(np.int64)
+    kronrod_col = np.flatnonzero(~is_gauss).astype(np.int64)
+    gauss_x = kronrod_x[gauss_col]
+    gauss_w = 0.5 * np.concatenate([_G7_WEIGHTS_HALF, _G7_WEIGHTS_HALF[-2::-1]])
+    y, w = gauss_legendre(FINE_POINTS)
+    return (gauss_x, _lagrange_at(gauss_x, y), kronrod_x, _lagrange_at(kronrod_x, y), gauss_col, kronrod_col,
+            legendre_tail(gauss_x, gauss_w), y, w)
+
+
+def quadrature(quality) -> Quadrature:
+    """The rule and the resolved settings (a cloudmeta.render.Quality) as one records.Quadrature."""
+    u_stop = -math.log(quality.cutoff) if quality.cutoff > 0.0 else math.inf
+    return Quadrature(*quadrature_rule(), float(quality.max_tau), float(quality.max_length),
+                      float(quality.max_angle), float(quality.cutoff), u_stop, float(quality.tol_t),
+                      float(quality.tolerance))

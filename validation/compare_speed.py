@@ -1,0 +1,74 @@
+"""Cold compile time and warm render time of the cumulus, for several checkouts side by side.
+
+For each checkout (a folder holding the cloudmeta package), alternating between them ``--rounds`` times:
+- cold: a fresh process with an empty cache folder (CLOUDMETA_CACHE_DIR) imports cloudmeta and renders
+  scenes/cumulus.yaml at 64 x 64; the wall time of the whole process;
+- warm: a fresh process with that (now filled) cache renders the cumulus once at 16 x 16 (load), then
+  times the cumulus at 512 x 512 with the default settings ``--repeat`` times.
+Prints the median and the spread (min - max) of each figure per checkout.
+
+    python -m validation.compare_speed /path/to/old /path/to/new [--rounds 3] [--repeat 2]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+_COLD = textwrap.dedent("""
+    import cloudmeta as cm
+    cm.render(cm.load_scene({scene!r}, width=64, height=64), progress=False)
+""")
+_WARM = textwrap.dedent("""
+    import time
+    import cloudmeta as cm
+    cm.render(cm.load_scene({scene!r}, width=16, height=16), progress=False)
+    s = cm.load_scene({scene!r})
+    for _ in range({repeat}):
+        t = time.perf_counter(); cm.render(s, progress=False); print(time.perf_counter() - t)
+""")
+
+
+def run(root, code, cache):
+    env = dict(os.environ, CLOUDMETA_CACHE_DIR=str(cache), PYTHONPATH=str(root))
+    env.pop("NUMBA_CACHE_DIR", None)
+    start = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True,
+                         cwd=root)
+    return time.perf_counter() - start, out.stdout
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("roots", nargs="+")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--skip-cold", action="store_true")
+    args = ap.parse_args(argv)
+    cold = {r: [] for r in args.roots}
+    warm = {r: [] for r in args.roots}
+    for k in range(args.rounds):
+        for root in args.roots:
+            scene = str(Path(root) / "scenes" / "cumulus.yaml")
+            with tempfile.TemporaryDirectory() as cache:
+                if not args.skip_cold:
+                    wall, _ = run(root, _COLD.format(scene=scene), cache)
+                    cold[root].append(wall)
+                _, out = run(root, _WARM.format(scene=scene, repeat=args.repeat), cache)
+                warm[root] += [float(x) for x in out.split()]
+            print(f"round {k}: {root}: cold {cold[root][-1:]} warm {warm[root][-args.repeat:]}", flush=True)
+    for root in args.roots:
+        for name, v in (("cold compile + 64x64 render (s)", cold[root]), ("warm 512x512 render (s)", warm[root])):
+            if v:
+                print(f"{root:40s} {name:34s} median {statistics.median(v):8.3f}  min {min(v):8.3f}  "
+                      f"max {max(v):8.3f}  n {len(v)}")
+
+
+if __name__ == "__main__":
+    main()
