@@ -31,7 +31,7 @@ MEMORY_FRACTION = 0.75         #: of the machine's physical memory that one rend
 # --- numeric domain -------------------------------------------------------------------------------
 LENGTH_RANGE = (1e-100, 1e100)  #: any length or coordinate, and L itself
 MAX_OFFSET = 1e6               #: |coordinate| / L (centres, camera, point lights)
-MIN_RADIUS = 1e-6              #: radius / L
+MIN_RADIUS_TOLERANCES = 1000   #: radius / (root tolerance x L): 1e-6 of L at the default 1e-9
 MAX_WEIGHT = 1e6               #: |weight| / threshold
 THRESHOLD_RANGE = (1e-100, 1e100)
 MAX_BLOBBINESS = 1000.0        #: b of the blinn kernel (e^-1000 is 0 in double precision already)

@@ -39,6 +39,7 @@ import numba
 import numpy as np
 
 from .engine import DENSITY_MODES, n_chunks
+from .errors import InputError
 from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
 from .kernels.radiance import DIRECTIONAL, POINT, render_pixels
 from .kernels.shadowmap import trace_texels
@@ -319,6 +320,8 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
     With ``depth=True`` returns (image, depth): depth (H x W, float64) is, per pixel, the distance along
     the camera ray to the nearest surface hit among its samples (inf where no sample meets a surface).
     """
+    if not isinstance(scene, Scene):  # issue #15: the API's wrong types are InputErrors naming the argument
+        raise InputError(f"scene: expected a cloudmeta Scene (from load_scene), got {type(scene).__name__}")
     lo, hi = scene.bbox()
     q = resolve_quality(scene.render, float(np.linalg.norm(hi - lo)))
     media = pack_media(scene.media)

@@ -591,8 +591,13 @@ def _blob(n, what):
     try:
         blob = Blob(balls[:, 0:3], balls[:, 3:6], balls[:, 9], kernel, threshold,
                     rotations=balls[:, 6:9], blobbiness=blobbiness)
-    except InputError as exc:
-        n.fail(key, str(exc))
+    except InputError as exc:  # "radii[3]: expected ...": point at ball 3 where it was given
+        found = re.match(r"(centers|radii|weights|rotations)\[(\d+)[^\]]*\]: (.*)", str(exc))
+        if not found:
+            n.fail(key, str(exc))
+        field = {"centers": "center", "radii": "radius", "weights": "weight", "rotations": "rotation"}
+        key_path, prefix = locate(int(found.group(2)), field[found.group(1)])
+        n.ctx.fail(key_path, prefix + found.group(3))
     n.ctx.ball_sources[id(blob)] = locate
     return blob
 
@@ -837,6 +842,8 @@ def _check_domain(ctx, scene):
         ctx.fail(f"{things[0][0]}.balls", f"the scene's bounding-box diagonal is {diag:g}, outside "
                                          f"[{lim.LENGTH_RANGE[0]:g}, {lim.LENGTH_RANGE[1]:g}] (README: Limits)")
     far = lim.MAX_OFFSET * diag
+    # a ball spans at least 1000 root tolerances (1e-6 of the diagonal at the default 1e-9)
+    min_radius = lim.MIN_RADIUS_TOLERANCES * (scene.render.root_tolerance or 1e-9)
     for path, thing in things:
         blob, locate = thing.blob, ctx.ball_sources[id(thing.blob)]
         bad = np.flatnonzero(np.abs(blob.centers).max(axis=1) > far)
@@ -844,11 +851,11 @@ def _check_domain(ctx, scene):
             key_path, prefix = locate(int(bad[0]), "center")
             ctx.fail(key_path, f"{prefix}expected a centre within +-{far:.3g} ({lim.MAX_OFFSET:g} x the scene's "
                                f"diagonal {diag:.3g}), got {_g(blob.centers[bad[0]])}")
-        small = np.flatnonzero(blob.radii.min(axis=1) < lim.MIN_RADIUS * diag)
+        small = np.flatnonzero(blob.radii.min(axis=1) < min_radius * diag)
         if len(small):
             key_path, prefix = locate(int(small[0]), "radius")
-            ctx.fail(key_path, f"{prefix}expected radii of at least {lim.MIN_RADIUS * diag:.3g} ({lim.MIN_RADIUS:g} "
-                               f"x the scene's diagonal {diag:.3g}), got {_g(blob.radii[small[0]])}")
+            ctx.fail(key_path, f"{prefix}expected radii of at least {min_radius * diag:.3g} ({min_radius:g} x the "
+                               f"scene's diagonal {diag:.3g}: 1000 root tolerances), got {_g(blob.radii[small[0]])}")
     for key, point in (("camera.position", scene.camera.position), ("camera.look_at", scene.camera.look_at)) + \
             tuple((f"lights[{i}].position", l.position) for i, l in enumerate(scene.lights)
                   if isinstance(l, PointLight)):
