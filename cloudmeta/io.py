@@ -54,7 +54,10 @@ def atomic_outputs(paths):
     try:
         for path in paths:
             folder, name = os.path.split(path)
-            fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-", suffix=os.path.splitext(name)[1], dir=folder)
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-", suffix=os.path.splitext(name)[1], dir=folder)
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot create a file in {folder}: {exc.strerror or exc}") from None
             os.close(fd)
             tmps.append(tmp)
         yield list(tmps)
@@ -171,43 +174,47 @@ def encode_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
 
 
 def check_output_path(path, ext, label, inputs=()):
-    """Refuse, before any work, an output ``path`` that cannot be written or must not be: a wrong extension
-    (``ext``, e.g. ``.exr``), a folder that does not exist or cannot be written, a name too long for the
-    file system (the temporary name included), an existing target that is a folder, a device or a FIFO, or
-    one of ``inputs`` (the scene's own files). ``label`` names where the path came from (``-o``).
+    """Refuse, before any work, an output ``path`` that cannot be written or must not be: one of ``inputs``
+    (the scene's own files), an existing target that is a folder, a device or a FIFO, a wrong extension
+    (``ext``, e.g. ``.exr``), a folder that does not exist or cannot be written, or a name too long for the
+    file system (the temporary name included). ``label`` names where the path came from (``-o``).
     Raises OutputError; returns the absolute path."""
     path = os.fspath(path)
-    where = f"{label} {path}"
+    where = f"{label} {_shorten(path)}"
     if not path or path.endswith(os.sep) or os.path.basename(path) in (".", ".."):
         raise OutputError(f"{where}: expected a file name, got a folder")
-    if os.path.splitext(path)[1].lower() != ext:
-        raise OutputError(f"{where}: expected a name ending in {ext} (this output is written as {ext[1:].upper()})")
     full = os.path.abspath(path)
     folder, name = os.path.split(full)
     name_max, path_max = _fs_limit(folder, "PC_NAME_MAX", 255), _fs_limit(folder, "PC_PATH_MAX", 4096)
-    tmp_name = f".{name}.tmp-xxxxxxxx{ext}.old"  # what atomic_outputs creates next to it
+    tmp_name = f".{name}.tmp-xxxxxxxx{ext}.old"  # the longest name atomic_outputs creates next to it
     if len(os.fsencode(tmp_name)) > name_max:
         raise OutputError(f"{where}: the name is too long for this file system (at most {name_max - 24} bytes)")
     if len(os.fsencode(os.path.join(folder, tmp_name))) >= path_max:
         raise OutputError(f"{where}: the path is too long for this file system (at most {path_max - 25} bytes)")
-    if not os.path.isdir(folder):
-        missing = "does not exist" if not os.path.exists(folder) else "is not a folder"
-        raise OutputError(f"{where}: the folder {folder} {missing}")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputError(f"{where}: the folder {folder} is not writable")
-    if os.path.lexists(path):
+    if os.path.isdir(full):
+        raise OutputError(f"{where}: is a folder")
+    for source in inputs:
+        if _same_file(full, source):
+            raise OutputError(f"{where}: is an input of the scene ({_shorten(source)}); refusing to overwrite it")
+    if os.path.lexists(full):
         try:
             info = os.stat(full)
         except OSError as exc:
             raise OutputError(f"{where}: {exc.strerror or exc}") from None
-        if stat.S_ISDIR(info.st_mode):
-            raise OutputError(f"{where}: is a folder")
         if not stat.S_ISREG(info.st_mode):
             raise OutputError(f"{where}: is not a regular file (a device, FIFO or socket); refusing to replace it")
-    for source in inputs:
-        if _same_file(full, source):
-            raise OutputError(f"{where}: is an input of the scene ({source}); refusing to overwrite it")
+    if os.path.splitext(name)[1].lower() != ext:
+        raise OutputError(f"{where}: expected a name ending in {ext} (this output is written as {ext[1:].upper()})")
+    if not os.path.isdir(folder):
+        missing = "does not exist" if not os.path.exists(folder) else "is not a folder"
+        raise OutputError(f"{where}: the folder {_shorten(folder)} {missing}")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"{where}: the folder {_shorten(folder)} is not writable")
     return full
+
+
+def _shorten(text, limit=100):
+    return text if len(text) <= limit else f"{text[:45]}...{text[-45:]}"
 
 
 def check_distinct(outputs):
