@@ -855,7 +855,8 @@ def _check_domain(ctx, scene):
         if len(small):
             key_path, prefix = locate(int(small[0]), "radius")
             ctx.fail(key_path, f"{prefix}expected radii of at least {min_radius * diag:.3g} ({min_radius:g} x the "
-                               f"scene's diagonal {diag:.3g}: 1000 root tolerances), got {_g(blob.radii[small[0]])}")
+                               f"scene's diagonal {diag:.3g}: 1000 root tolerances; a ball far from the rest makes the "
+                               f"diagonal large), got {_g(blob.radii[small[0]])}")
     for key, point in (("camera.position", scene.camera.position), ("camera.look_at", scene.camera.look_at)) + \
             tuple((f"lights[{i}].position", l.position) for i, l in enumerate(scene.lights)
                   if isinstance(l, PointLight)):
