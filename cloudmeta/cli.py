@@ -102,7 +102,14 @@ _RENDERS = []
 
 
 def _inspect(args):
+    from .errors import OutputError
     from .inspect import inspect_command
+    from .io import same_file
+    from .scene import load_scene
+    inputs = load_scene(args.scene).inputs
+    for label, path in (("--screenshot", args.screenshot), ("--save", args.save)):
+        if path and any(same_file(os.path.abspath(path), source) for source in inputs):
+            raise OutputError(f"{label} {path}: is an input of the scene; refusing to overwrite it")
     return inspect_command(args)
 
 

@@ -194,7 +194,7 @@ def check_output_path(path, ext, label, inputs=()):
     if os.path.isdir(full):
         raise OutputError(f"{where}: is a folder")
     for source in inputs:
-        if _same_file(full, source):
+        if same_file(full, source):
             raise OutputError(f"{where}: is an input of the scene ({_shorten(source)}); refusing to overwrite it")
     if os.path.lexists(full):
         try:
@@ -221,11 +221,12 @@ def check_distinct(outputs):
     """Refuse two outputs that name one file: [(label, path)]."""
     for i, (label_a, a) in enumerate(outputs):
         for label_b, b in outputs[i + 1:]:
-            if _same_file(a, b):
+            if same_file(a, b):
                 raise OutputError(f"{label_a} {a} and {label_b} {b} name the same file; give each its own")
 
 
-def _same_file(a, b):
+def same_file(a, b):
+    """True where the paths name one file: the same real path, or hard links to one file."""
     if os.path.realpath(a) == os.path.realpath(b):
         return True
     try:
