@@ -9,16 +9,50 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InputError
+from .limits import LENGTH_RANGE, MAX_BLOBBINESS, MAX_WEIGHT, THRESHOLD_RANGE
 
 #: kernel name -> the integer id the numba kernels switch on
 KERNELS = {"wyvill6": 0, "murakami4": 1, "nishimura": 2, "blinn": 3}
 
 
-def _finite_array(name, value, shape_tail, dtype=np.float64):
+def is_real(x):
+    """True for an int or float (numpy's too); bool is not a number."""
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+
+
+def real_number(name, value, check=None, expect="a finite number"):
+    """``value`` as a float, or InputError naming ``name``: a finite int or float (not a bool, not text)
+    that passes ``check``."""
+    ok = is_real(value)
+    if ok:
+        try:
+            ok = bool(np.isfinite(value)) and (check is None or bool(check(value)))
+        except (OverflowError, TypeError):
+            ok = False
+    if not ok:
+        raise InputError(f"{name}: expected {expect}, got {value!r}"[:200])
+    return float(value)
+
+
+def real_array(name, value, dtype=np.float64):
+    """``value`` as a float64 array of real numbers, or InputError naming ``name`` (ragged lists, text and
+    booleans are refused rather than converted)."""
     try:
-        arr = np.array(value, dtype=dtype)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: expected an array of numbers ({exc})") from None
+        raw = np.asarray(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected an array of numbers, got a ragged or mixed sequence") from None
+    if raw.dtype.kind not in "iuf" and not (raw.dtype.kind == "O" and all(is_real(v) for v in raw.flat)):
+        what = "booleans" if raw.dtype.kind == "b" else f"dtype {raw.dtype}"
+        raise InputError(f"{name}: expected an array of real numbers, got {what}")
+    try:
+        with np.errstate(over="ignore"):
+            return raw.astype(dtype)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InputError(f"{name}: expected an array of numbers ({exc})"[:200]) from None
+
+
+def _finite_array(name, value, shape_tail, dtype=np.float64):
+    arr = real_array(name, value, dtype)
     if shape_tail is not None:
         want = len(shape_tail) + 1
         if arr.ndim != want or tuple(arr.shape[1:]) != tuple(shape_tail):
@@ -84,13 +118,28 @@ class Blob:
             weights = np.full(n, float(weights))
         if weights.shape != (n,):
             raise InputError(f"weights: expected shape ({n},) to match centers, got {weights.shape}")
-        if kernel not in KERNELS:
-            raise InputError(f"kernel: expected one of {', '.join(KERNELS)}, got {kernel!r}")
-        if not (isinstance(threshold, (int, float, np.floating, np.integer)) and np.isfinite(threshold)
-                and threshold > 0):
-            raise InputError(f"threshold: expected a finite number > 0, got {threshold!r}")
-        if not (np.isfinite(blobbiness) and blobbiness > 0):
-            raise InputError(f"blobbiness: expected a finite number > 0, got {blobbiness!r}")
+        if not (isinstance(kernel, str) and kernel in KERNELS):
+            raise InputError(f"kernel: expected one of {', '.join(KERNELS)}, got {kernel!r}"[:200])
+        lo, hi = THRESHOLD_RANGE
+        threshold = real_number("threshold", threshold, lambda v: lo <= v <= hi,
+                                f"a finite number > 0, from {lo:g} to {hi:g}")
+        blobbiness = real_number("blobbiness", blobbiness, lambda v: 0 < v <= MAX_BLOBBINESS,
+                                 f"a finite number > 0 and <= {MAX_BLOBBINESS:g}")
+        # the numeric domain (docs/model_notes.md): every square and ratio of squares of lengths stays far
+        # inside the double range, and F - T is resolved to far better than the threshold
+        far = np.flatnonzero(np.abs(centers).max(axis=1) > LENGTH_RANGE[1])
+        if len(far):
+            raise InputError(f"centers[{far[0]}]: expected coordinates within +-{LENGTH_RANGE[1]:g}, "
+                             f"got {centers[far[0]].tolist()}")
+        bad = np.argwhere((radii3 < LENGTH_RANGE[0]) | (radii3 > LENGTH_RANGE[1]))
+        if len(bad):
+            i = int(bad[0][0])
+            raise InputError(f"radii[{i}]: expected a radius from {LENGTH_RANGE[0]:g} to {LENGTH_RANGE[1]:g}, "
+                             f"got {radii[i]}")
+        heavy = np.flatnonzero(np.abs(weights) > MAX_WEIGHT * threshold)
+        if len(heavy):
+            raise InputError(f"weights[{heavy[0]}]: expected |weight| <= {MAX_WEIGHT:g} x threshold, "
+                             f"got {weights[heavy[0]]:g}")
         if rotations is None:
             q = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         else:
@@ -105,6 +154,9 @@ class Blob:
                     raise InputError(f"rotations[{bad[0]}]: expected an orthonormal 3x3 matrix")
             else:
                 raise InputError(f"rotations: expected shape ({n}, 3) in degrees or ({n}, 3, 3), got {rot.shape}")
+
+        if rotations is not None and rot.shape == (n, 3) and np.abs(rot).max() > 1e6:
+            raise InputError("rotations: expected angles in degrees within +-1e6")
 
         self.kernel = kernel
         self.kernel_id = KERNELS[kernel]

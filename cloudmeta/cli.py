@@ -2,50 +2,114 @@
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
-from .errors import CloudmetaError
+from .errors import CloudmetaError, SceneError
+
+#: exit status of a run stopped by Ctrl-C or SIGTERM (128 + SIGINT, as a shell reports it)
+INTERRUPTED = 130
 
 
 def _render(args):
-    from .io import write_exr, write_png
-    from .render import render
+    from .io import atomic_outputs, check_distinct, check_output_path, encode_exr, encode_png
+    from .limits import MAX_EXPOSURE
     from .scene import load_scene
 
-    scene = load_scene(args.scene, width=args.width, height=args.height, spp=args.spp)
-    overrides = {k: v for k, v in (("quality", args.quality), ("shadows", args.shadows),
-                                   ("shadow_map", args.shadow_map)) if v is not None}
-    if overrides:
-        from dataclasses import replace
-        scene = replace(scene, render=replace(scene.render, **overrides))
-    exr = args.output or scene.output.path or str(Path(args.scene).with_suffix(".exr").name)
-    png = args.png or scene.output.png
+    if args.exposure is not None and not abs(args.exposure) <= MAX_EXPOSURE:  # nan, inf, 2000
+        raise CloudmetaError(f"--exposure: expected a finite number of stops within +-{MAX_EXPOSURE:g}, "
+                             f"got {args.exposure:g}")
+    overrides = {"quality": args.quality, "shadows": args.shadows, "shadow_map": args.shadow_map}
+    scene = load_scene(args.scene, width=args.width, height=args.height, spp=args.spp, render=overrides)
+    outputs = _outputs(args, scene)
+    for label, path, ext in outputs:
+        check_output_path(path, ext, label, scene.inputs)
+    check_distinct([(label, path) for label, path, _ in outputs])
+    exposure = scene.output.exposure if args.exposure is None else args.exposure
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     print(f"cloudmeta: rendering {args.scene}: {w} x {h}, {spp} spp, quality {scene.render.quality}, "
           f"{scene.render.shadows} shadows, "
           f"{sum(len(m.blob) for m in scene.media)} balls in {len(scene.media)} media, "
           f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights")
-    from .config import is_compiled
-    from .kernels.radiance import render_pixels
-    if not is_compiled(render_pixels):
-        print("cloudmeta: compiling the kernels for this machine (once: about 2 minutes on 2 cores, then cached)",
-              flush=True)
-    start = time.perf_counter()
-    image = render(scene, progress=not args.quiet)
-    took = time.perf_counter() - start
-    write_exr(image, exr, colourspace=scene.render.colourspace)
-    print(f"cloudmeta: rendered in {took:.2f} s; wrote {exr}")
-    if png:
-        write_png(image, png, exposure=scene.output.exposure if args.exposure is None else args.exposure,
-                  colourspace=scene.render.colourspace)
-        print(f"cloudmeta: wrote {png}")
+    # every output is created now as a temporary file and renamed into place only when all are written
+    with atomic_outputs([path for _, path, _ in outputs]) as tmps:
+        image, took = _render_image(scene, progress=not args.quiet and sys.stderr.isatty())
+        encode_exr(image, tmps[0], colourspace=scene.render.colourspace)
+        if len(tmps) > 1:
+            encode_png(image, tmps[1], exposure=exposure, colourspace=scene.render.colourspace)
+    print(f"cloudmeta: rendered in {took:.2f} s; wrote {', '.join(path for _, path, _ in outputs)}")
     return 0
 
 
+def _outputs(args, scene):
+    """[(where the path came from, path, extension)]: the EXR, then the PNG if one is asked for."""
+    if args.output:
+        exr = ("-o", args.output)
+    elif scene.output.path:
+        exr = (f"{scene.path}: output.path", scene.output.path)
+    else:
+        exr = ("the default output", str(Path(args.scene).with_suffix(".exr").name))
+    out = [(*exr, ".exr")]
+    if args.png:
+        out.append(("--png", args.png, ".png"))
+    elif scene.output.png:
+        out.append((f"{scene.path}: output.png", scene.output.png, ".png"))
+    return out
+
+
+def _render_image(scene, progress):
+    """(image, seconds): the render, on a thread of its own so that the main thread stays free to take
+    Ctrl-C and SIGTERM at once (the kernels run without the GIL, on bands of rows)."""
+    import numpy as np
+
+    from .config import is_compiled
+    from .kernels.radiance import render_pixels
+    from .render import render
+    if not is_compiled(render_pixels):
+        print("cloudmeta: compiling the kernels for this machine (once: about 2 minutes on 2 cores, then cached)",
+              flush=True)
+    result = {}
+
+    def work():
+        try:
+            start = time.perf_counter()
+            result["image"] = render(scene, progress=progress)
+            result["took"] = time.perf_counter() - start
+        except BaseException as exc:  # handed to the main thread
+            result["error"] = exc
+
+    worker = threading.Thread(target=work, name="cloudmeta-render", daemon=True)
+    _RENDERS.append(worker)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.2)
+    _RENDERS.remove(worker)
+    if "error" in result:
+        raise result["error"]
+    image = result["image"]
+    if not np.all(np.isfinite(image)):
+        raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
+                                           "the lights' irradiance or intensity (README: Limits)")
+    return image, result["took"]
+
+
+#: render threads still running (an interrupt then ends the process at once instead of waiting for them)
+_RENDERS = []
+
+
 def _inspect(args):
+    from .errors import OutputError
     from .inspect import inspect_command
+    from .io import same_file
+    from .scene import load_scene
+    inputs = load_scene(args.scene).inputs
+    for label, path in (("--screenshot", args.screenshot), ("--save", args.save)):
+        if path and any(same_file(os.path.abspath(path), source) for source in inputs):
+            raise OutputError(f"{label} {path}: is an input of the scene; refusing to overwrite it")
     return inspect_command(args)
 
 
@@ -56,8 +120,16 @@ def _texels(text):
     return value
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (no usage block): ``cloudmeta: error: ...``, exit 2."""
+
+    def error(self, message):
+        print(f"cloudmeta: error: {message} (see {self.prog} --help)", file=sys.stderr)
+        sys.exit(2)
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(prog="cloudmeta", description=__doc__)
+    parser = _Parser(prog="cloudmeta", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("render", help="render a YAML scene to OpenEXR")
@@ -85,16 +157,41 @@ def build_parser():
     return parser
 
 
+def _terminate(signum, frame):
+    raise KeyboardInterrupt  # SIGTERM ends a run like Ctrl-C: temporary files removed, one line, 130
+
+
+def _one_line(exc):
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 600 else text[:597] + "..."
+
+
 def main(argv=None):
     args = build_parser().parse_args(argv)
+    handler = None
+    if threading.current_thread() is threading.main_thread():
+        handler = signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.run(args)
+    except KeyboardInterrupt:
+        print("cloudmeta: interrupted", file=sys.stderr, flush=True)
+        if _RENDERS:  # the kernels cannot be stopped midway: end the process, its temporary files are gone
+            sys.stdout.flush()
+            os._exit(INTERRUPTED)
+        return INTERRUPTED
     except CloudmetaError as exc:
-        print(f"cloudmeta: error: {exc}", file=sys.stderr)
+        print(f"cloudmeta: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except OSError as exc:
-        print(f"cloudmeta: error: {exc}", file=sys.stderr)
+        what = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"cloudmeta: error: {what}{_one_line(exc.strerror or exc)}", file=sys.stderr)
         return 2
+    except MemoryError:
+        print("cloudmeta: error: out of memory (README: Limits)", file=sys.stderr)
+        return 1
+    finally:
+        if handler is not None:
+            signal.signal(signal.SIGTERM, handler)
 
 
 if __name__ == "__main__":

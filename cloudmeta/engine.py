@@ -9,9 +9,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .blob import Blob
+from .blob import Blob, real_array, real_number
 from .errors import InputError
 from .kernels.records import BVH, BlobRecord, Rays, TraceOut
+from .limits import LENGTH_RANGE
 from .kernels.sweep import DENSITY_EXCESS, DENSITY_FIELD, DENSITY_UNIFORM
 from .kernels.trace import field_at, first_hits, gradient_at, trace_rays
 
@@ -21,15 +22,19 @@ DENSITY_MODES = {"field": DENSITY_FIELD, "excess": DENSITY_EXCESS, "uniform": DE
 TRACEABLE_KERNELS = ("wyvill6", "murakami4", "nishimura", "blinn")
 
 
-def _points(name, value):
-    arr = np.asarray(value, dtype=np.float64)
+def _points(name, value, bound=LENGTH_RANGE[1]):
+    """(N, 3) float64 of finite numbers within +-``bound``, or InputError naming ``name`` and the row."""
+    arr = real_array(name, value)
     if arr.ndim == 1:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 3:
-        raise InputError(f"{name}: expected shape (N, 3) or (3,), got {np.shape(value)}")
+        raise InputError(f"{name}: expected shape (N, 3) or (3,), got {arr.shape}")
     bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
     if len(bad):
         raise InputError(f"{name}[{bad[0]}]: expected finite coordinates, got {arr[bad[0]]}")
+    far = np.flatnonzero(np.abs(arr).max(axis=1, initial=0.0) > bound)
+    if len(far):
+        raise InputError(f"{name}[{far[0]}]: expected coordinates within +-{bound:g}, got {arr[far[0]]}")
     return arr
 
 
@@ -52,18 +57,20 @@ def check_blob(blob):
 def prepare_rays(origins, directions, t_max=np.inf):
     """Validated (N, 3) origins, unit (N, 3) directions and (N,) t_max, broadcast against each other."""
     o = _points("origins", origins)
-    d = _points("directions", directions)
+    d = _points("directions", directions, bound=np.inf)  # any magnitude: normalised without overflow
     if len(o) != len(d) and len(o) != 1 and len(d) != 1:
         raise InputError(f"origins, directions: expected the same number of rays, got {len(o)} and {len(d)}")
     n = max(len(o), len(d))
     # np.array copies: writable and contiguous every time, so numba sees one type and compiles once
     o = np.array(np.broadcast_to(o, (n, 3)))
-    length = np.linalg.norm(d, axis=1)
-    bad = np.flatnonzero(length == 0.0)
+    # |d| without overflow or underflow: [1e200, 0, 0] and [1e-160, 0, 0] are [1, 0, 0]
+    biggest = np.abs(d).max(axis=1)
+    bad = np.flatnonzero(biggest == 0.0)
     if len(bad):
         raise InputError(f"directions[{bad[0]}]: expected a non-zero vector")
-    d = np.array(np.broadcast_to(d / length[:, None], (n, 3)))
-    tm = np.asarray(t_max, dtype=np.float64)
+    d = d / biggest[:, None]
+    d = np.array(np.broadcast_to(d / np.linalg.norm(d, axis=1)[:, None], (n, 3)))
+    tm = real_array("t_max", t_max)
     if tm.ndim == 0:
         tm = np.full(n, float(tm))
     if tm.shape != (n,):
@@ -76,9 +83,8 @@ def prepare_rays(origins, directions, t_max=np.inf):
 
 def root_tolerance(blob, tolerance=ROOT_TOLERANCE):
     """Absolute tolerance on t: ``tolerance`` times the blob's bounding-box diagonal."""
-    if not (np.isfinite(tolerance) and tolerance > 0):
-        raise InputError(f"tolerance: expected a number > 0, got {tolerance!r}")
-    return float(tolerance) * blob.diagonal
+    tolerance = real_number("tolerance", tolerance, lambda v: 0 < v <= 1e-3, "a number > 0 and <= 1e-3")
+    return tolerance * blob.diagonal
 
 
 def n_chunks(n_items):
@@ -97,10 +103,9 @@ def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1
     """tau (N,), and with ``lists`` the per-ray roots and segments (Python lists of arrays: costly for
     millions of rays, so optical_depth skips them)."""
     blob = check_traceable(blob)
-    if density not in DENSITY_MODES:
-        raise InputError(f"density: expected one of {', '.join(DENSITY_MODES)}, got {density!r}")
-    if not (np.isfinite(scale) and scale >= 0):
-        raise InputError(f"scale: expected a finite number >= 0, got {scale!r}")
+    if not (isinstance(density, str) and density in DENSITY_MODES):
+        raise InputError(f"density: expected one of {', '.join(DENSITY_MODES)}, got {density!r}"[:200])
+    scale = real_number("scale", scale, lambda v: 0 <= v <= 1e100, "a finite number >= 0 (and <= 1e100)")
     o, d, tm = prepare_rays(origins, directions, t_max)
     tol = root_tolerance(blob, tolerance)
     n = len(o)

@@ -9,6 +9,10 @@ class InputError(CloudmetaError, ValueError):
     """A bad argument to the Python API. The message names the argument and, where it applies, the index."""
 
 
+class OutputError(CloudmetaError, ValueError):
+    """An output path that cannot or must not be written (checked before any work): names the path."""
+
+
 class SceneError(CloudmetaError, ValueError):
     """A bad scene file: names the file, the key path (``media[0].balls[12].radius``) and what was expected."""
 

@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import tempfile
 
 import numpy as np
 
 from .colour import DEFAULT_COLOURSPACE, chromaticities, encode_srgb
-from .errors import InputError
+from .errors import InputError, OutputError
+from .limits import MAX_EXPOSURE
 
 _CHANNELS = "RGBA"
 
@@ -40,9 +42,64 @@ def atomic_output(path):
         raise
 
 
-def _check_image(image):
+@contextlib.contextmanager
+def atomic_outputs(paths):
+    """Like ``atomic_output`` for several files at once: yields one temporary path per path (all created
+    now, so that a folder that cannot take them fails before any work), and renames them into place only
+    when the whole block succeeded. Should a rename fail, the files already renamed are put back as they
+    were (the previous file restored from a hard link, or removed where there was none): nothing new is left.
+    """
+    paths = [os.path.abspath(os.fspath(p)) for p in paths]
+    tmps = []
+    try:
+        for path in paths:
+            folder, name = os.path.split(path)
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-", suffix=os.path.splitext(name)[1], dir=folder)
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot create a file in {folder}: {exc.strerror or exc}") from None
+            os.close(fd)
+            tmps.append(tmp)
+        yield list(tmps)
+        _commit(paths, tmps)
+    except BaseException:
+        for tmp in tmps:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        raise
+
+
+def _commit(paths, tmps):
+    """Rename every temporary file onto its path, or none of them."""
+    done, backups = [], {}
+    try:
+        for path, tmp in zip(paths, tmps):
+            if len(paths) > 1 and os.path.exists(path):
+                backup = f"{tmp}.old"
+                os.link(path, backup)
+                backups[path] = backup
+            os.replace(tmp, path)
+            done.append(path)
+    except BaseException:
+        for path in done:
+            with contextlib.suppress(OSError):
+                if path in backups:
+                    os.replace(backups.pop(path), path)
+                else:
+                    os.unlink(path)
+        raise
+    finally:
+        for backup in backups.values():
+            with contextlib.suppress(OSError):
+                os.unlink(backup)
+
+
+def check_image(image):
     """``image`` as an H x W x 3|4 float64 array of finite values, or InputError."""
-    arr = np.asarray(image)
+    try:
+        arr = np.asarray(image)
+    except (TypeError, ValueError):
+        raise InputError("image: expected an array of numbers, got a ragged or mixed sequence") from None
     if arr.dtype.kind not in "fiu":
         raise InputError(f"image: expected an array of real numbers, got dtype {arr.dtype}")
     if arr.ndim != 3 or arr.shape[2] not in (3, 4) or arr.shape[0] < 1 or arr.shape[1] < 1:
@@ -58,7 +115,15 @@ def write_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False):
     Channels are FLOAT, or HALF with ``half=True``; the header carries the ``chromaticities`` of
     ``colourspace`` so that readers know the primaries and white of the linear values.
     """
-    arr = _check_image(image)
+    with atomic_output(path) as tmp:
+        encode_exr(image, tmp, colourspace, half)
+
+
+def encode_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False):
+    """``write_exr`` straight to ``path``, without a temporary file (for callers that hold one already)."""
+    arr = check_image(image)
+    if not isinstance(half, (bool, np.bool_)):
+        raise InputError(f"half: expected True or False, got {half!r}")
     dtype = np.float16 if half else np.float32
     with np.errstate(over="ignore"):
         stored = arr.astype(dtype)
@@ -70,8 +135,10 @@ def write_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False):
     channels = {name: np.ascontiguousarray(stored[:, :, i]) for i, name in enumerate(_CHANNELS[:arr.shape[2]])}
     import OpenEXR  # here, not at import: a render that writes no EXR should not pay for it
     header["compression"], header["type"] = OpenEXR.ZIP_COMPRESSION, OpenEXR.scanlineimage
-    with atomic_output(path) as tmp:
-        OpenEXR.File(header, channels).write(tmp)
+    try:
+        OpenEXR.File(header, channels).write(os.fspath(path))
+    except RuntimeError as exc:  # OpenEXR reports a failed write (a full disk, a lost folder) so
+        raise OSError(f"cannot write {os.fspath(path)}: {exc}") from None
 
 
 def read_exr(path):
@@ -91,8 +158,85 @@ def read_exr(path):
 
 def write_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
     """Write an 8-bit sRGB preview: RGB only (the render's RGB is already over its background; alpha is dropped)."""
-    from PIL import Image
-    arr = _check_image(image)
-    pixels = Image.fromarray(encode_srgb(arr[:, :, :3], exposure, colourspace))
     with atomic_output(path) as tmp:
-        pixels.save(tmp, format="PNG")
+        encode_png(image, tmp, exposure, colourspace)
+
+
+def encode_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
+    """``write_png`` straight to ``path``, without a temporary file (for callers that hold one already)."""
+    from PIL import Image
+    arr = check_image(image)
+    if not (isinstance(exposure, (int, float, np.integer, np.floating)) and not isinstance(exposure, (bool, np.bool_))
+            and abs(exposure) <= MAX_EXPOSURE):
+        raise InputError(f"exposure: expected a finite number of stops within +-{MAX_EXPOSURE:g}, got {exposure!r}")
+    pixels = Image.fromarray(encode_srgb(arr[:, :, :3], exposure, colourspace))
+    pixels.save(os.fspath(path), format="PNG")
+
+
+def check_output_path(path, ext, label, inputs=()):
+    """Refuse, before any work, an output ``path`` that cannot be written or must not be: one of ``inputs``
+    (the scene's own files), an existing target that is a folder, a device or a FIFO, a wrong extension
+    (``ext``, e.g. ``.exr``), a folder that does not exist or cannot be written, or a name too long for the
+    file system (the temporary name included). ``label`` names where the path came from (``-o``).
+    Raises OutputError; returns the absolute path."""
+    path = os.fspath(path)
+    where = f"{label} {_shorten(path)}"
+    if not path or path.endswith(os.sep) or os.path.basename(path) in (".", ".."):
+        raise OutputError(f"{where}: expected a file name, got a folder")
+    full = os.path.abspath(path)
+    folder, name = os.path.split(full)
+    name_max, path_max = _fs_limit(folder, "PC_NAME_MAX", 255), _fs_limit(folder, "PC_PATH_MAX", 4096)
+    tmp_name = f".{name}.tmp-xxxxxxxx{ext}.old"  # the longest name atomic_outputs creates next to it
+    if len(os.fsencode(tmp_name)) > name_max:
+        raise OutputError(f"{where}: the name is too long for this file system (at most {name_max - 24} bytes)")
+    if len(os.fsencode(os.path.join(folder, tmp_name))) >= path_max:
+        raise OutputError(f"{where}: the path is too long for this file system (at most {path_max - 25} bytes)")
+    if os.path.isdir(full):
+        raise OutputError(f"{where}: is a folder")
+    for source in inputs:
+        if same_file(full, source):
+            raise OutputError(f"{where}: is an input of the scene ({_shorten(source)}); refusing to overwrite it")
+    if os.path.lexists(full):
+        try:
+            info = os.stat(full)
+        except OSError as exc:
+            raise OutputError(f"{where}: {exc.strerror or exc}") from None
+        if not stat.S_ISREG(info.st_mode):
+            raise OutputError(f"{where}: is not a regular file (a device, FIFO or socket); refusing to replace it")
+    if os.path.splitext(name)[1].lower() != ext:
+        raise OutputError(f"{where}: expected a name ending in {ext} (this output is written as {ext[1:].upper()})")
+    if not os.path.isdir(folder):
+        missing = "does not exist" if not os.path.exists(folder) else "is not a folder"
+        raise OutputError(f"{where}: the folder {_shorten(folder)} {missing}")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"{where}: the folder {_shorten(folder)} is not writable")
+    return full
+
+
+def _shorten(text, limit=100):
+    return text if len(text) <= limit else f"{text[:45]}...{text[-45:]}"
+
+
+def check_distinct(outputs):
+    """Refuse two outputs that name one file: [(label, path)]."""
+    for i, (label_a, a) in enumerate(outputs):
+        for label_b, b in outputs[i + 1:]:
+            if same_file(a, b):
+                raise OutputError(f"{label_a} {a} and {label_b} {b} name the same file; give each its own")
+
+
+def same_file(a, b):
+    """True where the paths name one file: the same real path, or hard links to one file."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)  # hard links
+    except OSError:
+        return False
+
+
+def _fs_limit(folder, name, default):
+    try:
+        return os.pathconf(folder if os.path.isdir(folder) else "/", name)
+    except (OSError, ValueError):
+        return default

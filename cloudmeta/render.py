@@ -41,6 +41,7 @@ import numpy as np
 from .kernels.radiance import render_pixels
 from .pack import pack_camera, quadrature, scene_records
 from .scene import RenderSettings, Scene
+from .errors import InputError
 
 PRESETS = {
     "draft": dict(tolerance=1e-2, max_tau=4.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
@@ -84,6 +85,8 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
     With ``depth=True`` returns (image, depth): depth (H x W, float64) is, per pixel, the distance along
     the camera ray to the nearest surface hit among its samples (inf where no sample meets a surface).
     """
+    if not isinstance(scene, Scene):  # issue #15: the API's wrong types are InputErrors naming the argument
+        raise InputError(f"scene: expected a cloudmeta Scene (from load_scene), got {type(scene).__name__}")
     lo, hi = scene.bbox()
     quad = quadrature(resolve_quality(scene.render, float(np.linalg.norm(hi - lo))))
     records = scene_records(scene, quad, scene.render.shadow_map or SHADOW_MAP_RESOLUTION)

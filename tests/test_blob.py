@@ -37,3 +37,30 @@ def test_ellipsoid_axes_are_the_columns_of_q():
     assert cm.field(b, [[0, 2.99, 0]])[0] > 0 and cm.field(b, [[2.99, 0, 0]])[0] == 0
     lo, hi = b.bbox
     np.testing.assert_allclose(hi, [1, 3, 0.5], atol=1e-12)
+
+
+# --- issue #15: every wrong type or shape is an InputError naming the argument ------------------------------
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(centers=[[0, 0, 0]], radii=[1], kernel=["wyvill6"]), "kernel"),
+    (dict(centers=[[0, 0, 0]], radii=[1], threshold=True), "threshold"),
+    (dict(centers=[[0, 0, 0]], radii=[1], threshold="0.5"), "threshold"),
+    (dict(centers=[[0, 0, 0]], radii=[1], kernel="blinn", blobbiness="4"), "blobbiness"),
+    (dict(centers=[[0, 0, 0]], radii=[1], kernel="blinn", blobbiness=1e308), "blobbiness"),
+    (dict(centers=[["0", "0", "0"]], radii=[1]), "centers: expected an array of real numbers"),
+    (dict(centers=[[0, 0, 0], [1, 1]], radii=[1, 1]), "centers: expected an array of numbers, got a ragged"),
+    (dict(centers=[[0, 0, 0]], radii=[1], weights=[True]), "weights: expected an array of real numbers, got bool"),
+    (dict(centers=[[1e308, 0, 0]], radii=[1]), r"centers\[0\]: expected coordinates within"),
+    (dict(centers=[[0, 0, 0]], radii=[1e-300]), r"radii\[0\]: expected a radius from"),
+    (dict(centers=[[0, 0, 0]], radii=[1e308]), r"radii\[0\]"),
+    (dict(centers=[[0, 0, 0]], radii=[1], weights=[1e308]), r"weights\[0\]: expected \|weight\|"),
+    (dict(centers=[[0, 0, 0]], radii=[1], rotations=[[0, 0, 1e300]]), "rotations"),
+])
+def test_wrong_types_and_values_are_input_errors(kwargs, match):
+    with pytest.raises(cm.InputError, match=match):
+        cm.Blob(**kwargs)
+
+
+def test_render_of_a_non_scene_is_an_input_error():
+    with pytest.raises(cm.InputError, match="scene: expected a cloudmeta Scene"):
+        cm.render(cm.Blob([[0, 0, 0]], [1.0]))

@@ -1,6 +1,10 @@
 """The command line: a render end to end to a readable EXR, and clean errors for bad scenes."""
+import os
+import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -61,3 +65,117 @@ def test_shadow_map_size_must_be_two_or_more(capsys):
         main(["render", str(ROOT / "scenes" / "cumulus.yaml"), "--shadow-map", "1"])
     assert e.value.code == 2
     assert "expected an integer >= 2" in capsys.readouterr().err
+
+
+# --- issue #15: outputs checked before any work, nothing overwritten or half-written, Ctrl-C -----------------
+
+def _cli(args, cwd):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "cloudmeta.cli", *args], capture_output=True, text=True,
+                          timeout=300, cwd=cwd, env=env)
+
+
+def _snapshot(folder):
+    return {p.name: (p.stat().st_mtime_ns, p.read_bytes() if p.is_file() else None)
+            for p in sorted(Path(folder).iterdir())}
+
+
+@pytest.fixture
+def workdir(tmp_path):
+    shutil.copy(ROOT / "scenes" / "cumulus.yaml", tmp_path)
+    shutil.copy(ROOT / "scenes" / "cumulus.csv", tmp_path)
+    (tmp_path / "adir").mkdir()
+    os.mkfifo(tmp_path / "fifo.exr")
+    return tmp_path
+
+
+SMALL = ["render", "cumulus.yaml", "--width", "8", "--height", "8", "--quality", "draft", "-q"]
+BAD_OUTPUTS = [
+    (["-o", "missing/out.exr"], "folder", "does not exist"),
+    (["-o", "/dev/full"], "/dev/full", "not a regular file"),
+    (["-o", "fifo.exr"], "fifo.exr", "not a regular file"),
+    (["-o", "adir"], "adir", "is a folder"),
+    (["-o", "a" * 300 + ".exr"], "aaaa", "too long"),
+    (["-o", "cumulus.yaml"], "cumulus.yaml", "input of the scene"),
+    (["-o", "o.exr", "--png", "cumulus.yaml"], "--png cumulus.yaml", "input of the scene"),
+    (["-o", "cumulus.csv"], "cumulus.csv", "input of the scene"),
+    (["-o", "out.exr", "--png", "out.exr"], "--png out.exr", "ending in .png"),
+    (["-o", "out.png"], "-o out.png", "ending in .exr"),
+    (["-o", "o.exr", "--png", "missing/x.png"], "--png missing/x.png", "does not exist"),
+    (["-o", "o.exr", "--png", "o.png", "--exposure", "2000"], "--exposure", "within +-64"),
+    (["-o", "o.exr", "--exposure", "nan"], "--exposure", "within +-64"),
+    (["-o", "o.exr", "--shadows", "map", "--shadow-map", "1000000"], "render.shadow_map", "<= 8192"),
+    (["-o", "o.exr", "--width", "1000000000"], "image.width", "<= 16384"),
+    (["-o", "o.exr", "--width", "abc"], "--width", "invalid int"),
+]
+
+
+@pytest.mark.parametrize("extra, names, fragment", BAD_OUTPUTS, ids=[" ".join(b[0])[:40] for b in BAD_OUTPUTS])
+def test_bad_outputs_fail_before_any_work_and_change_nothing(workdir, monkeypatch, capsys, extra, names, fragment):
+    monkeypatch.chdir(workdir)
+    before = _snapshot(workdir)
+    try:
+        code = main(SMALL + extra)
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    assert code == 2
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cloudmeta: error: "), err
+    assert names in lines[0] and fragment in lines[0]
+    assert "Traceback" not in err and "rendering" not in out  # refused before the render
+    assert _snapshot(workdir) == before
+
+
+@pytest.mark.parametrize("extra", [["-o", "cumulus.yaml"], ["-o", "out.exr", "--png", "missing/x.png"]])
+def test_bad_outputs_through_a_subprocess(workdir, extra):
+    before = _snapshot(workdir)
+    proc = _cli(SMALL + extra, workdir)
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert _snapshot(workdir) == before
+
+
+def test_a_failing_png_leaves_no_exr(workdir, monkeypatch, capsys):
+    """Both outputs are renamed into place only when both are written: a PNG that fails to encode leaves
+    neither (nor a temporary file)."""
+    from cloudmeta import cli, io
+
+    def broken_png(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(io, "encode_png", broken_png)
+    monkeypatch.chdir(workdir)
+    before = _snapshot(workdir)
+    assert cli.main(SMALL + ["-o", "o.exr", "--png", "o.png"]) == 2
+    assert "No space left on device" in capsys.readouterr().err
+    assert _snapshot(workdir) == before
+
+
+def test_outputs_replace_existing_files_only_on_success(workdir, monkeypatch, capsys):
+    (workdir / "o.exr").write_bytes(b"old")
+    monkeypatch.chdir(workdir)
+    assert main(SMALL + ["-o", "o.exr", "--png", "o.png"]) == 0
+    assert (workdir / "o.exr").read_bytes()[:4] == b"\x76\x2f\x31\x01"  # the EXR magic number
+    assert (workdir / "o.png").read_bytes()[:4] == b"\x89PNG"
+    assert not [p for p in workdir.iterdir() if ".tmp-" in p.name]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_interrupt_exits_130_with_one_line_and_no_temporary_files(workdir, sig):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    args = [sys.executable, "-m", "cloudmeta.cli", "render", "cumulus.yaml", "--width", "256", "--height", "256",
+            "--spp", "64", "-o", "long.exr", "--png", "long.png", "-q"]
+    before = set(os.listdir(workdir))
+    proc = subprocess.Popen(args, cwd=workdir, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 240
+        while not [n for n in os.listdir(workdir) if ".tmp-" in n]:  # outputs reserved: the render is on
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        time.sleep(1.0)
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert err == "cloudmeta: interrupted\n"
+    assert set(os.listdir(workdir)) == before

@@ -313,3 +313,32 @@ def test_piecewise_kernels_render(tmp_path, kernel):
     assert tau > 0.1
     np.testing.assert_allclose(img[4, 4, :3], np.exp(-tau), rtol=1e-5)  # albedo 0: transmittance only
     assert img[0, 0, 3] == 0.0 and img[4, 4, 3] == pytest.approx(1 - np.exp(-tau), rel=1e-5)
+
+
+# --- issue #15: wrong types are InputErrors; directions of any magnitude ----------------------------------
+
+@pytest.mark.parametrize("call, match", [
+    (lambda b: cm.optical_depth(b, [0, 0, -5], [0, 0, 1], scale="2"), "scale"),
+    (lambda b: cm.optical_depth(b, [0, 0, -5], [0, 0, 1], scale=True), "scale"),
+    (lambda b: cm.optical_depth(b, [0, 0, -5], [0, 0, 1], density=["field"]), "density"),
+    (lambda b: cm.roots(b, [[0, 0, -5], [0, 0]], [0, 0, 1]), "origins: expected an array of numbers, got a ragged"),
+    (lambda b: cm.roots(b, [0, 0, -5], [0, 0, 1], t_max="far"), "t_max"),
+    (lambda b: cm.roots(b, [0, 0, -5], [0, 0, 1], tolerance="tight"), "tolerance"),
+    (lambda b: cm.roots(b, [0, 0, -1e300], [0, 0, 1]), r"origins\[0\]: expected coordinates within"),
+    (lambda b: cm.field(b, "abc"), "points"),
+    (lambda b: cm.field(None, [0, 0, 0]), "blob"),
+])
+def test_wrong_types_are_input_errors(call, match):
+    with pytest.raises(cm.InputError, match=match):
+        call(cm.Blob([[0, 0, 0]], [2.0]))
+
+
+@pytest.mark.parametrize("scale", [1e200, 1e-160, 5e-324, 1.7e308])
+def test_directions_of_any_magnitude_give_the_roots_of_the_unit_direction(scale):
+    blob = cm.Blob([[0, 0, 0]], [2.0])
+    want = cm.roots(blob, [0.1, 0, -5], [0, 0, 1])[0]
+    got = cm.roots(blob, [0.1, 0, -5], [0, 0, scale])[0]
+    assert len(want) == 2
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(cm.optical_depth(blob, [0.1, 0, -5], [0, 0, scale]),
+                                  cm.optical_depth(blob, [0.1, 0, -5], [0, 0, 1]))

@@ -99,3 +99,65 @@ def test_atomic_output_renames_only_on_success(tmp_path):
             f.write(b"new")
     assert target.read_bytes() == b"new"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.exr"]
+
+
+def test_atomic_outputs_renames_all_or_none(tmp_path):
+    from cloudmeta.io import atomic_outputs
+    a, b = tmp_path / "a.exr", tmp_path / "b.png"
+    a.write_bytes(b"old")
+    with pytest.raises(RuntimeError):
+        with atomic_outputs([a, b]) as (ta, tb):
+            open(ta, "wb").write(b"new a")
+            raise RuntimeError("the second output fails")
+    assert a.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == ["a.exr"]
+    with atomic_outputs([a, b]) as (ta, tb):
+        open(ta, "wb").write(b"new a")
+        open(tb, "wb").write(b"new b")
+    assert a.read_bytes() == b"new a" and b.read_bytes() == b"new b"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.exr", "b.png"]
+
+
+def test_a_failed_rename_puts_back_what_was_renamed(tmp_path, monkeypatch):
+    from cloudmeta import io
+    a, b = tmp_path / "a.exr", tmp_path / "b.png"
+    a.write_bytes(b"old a")
+    real = os.replace
+
+    def replace(src, dst):
+        if str(dst) == str(b):
+            raise OSError(5, "Input/output error")
+        return real(src, dst)
+    monkeypatch.setattr(io.os, "replace", replace)
+    with pytest.raises(OSError):
+        with io.atomic_outputs([a, b]) as (ta, tb):
+            open(ta, "wb").write(b"new a")
+            open(tb, "wb").write(b"new b")
+    monkeypatch.setattr(io.os, "replace", real)
+    assert a.read_bytes() == b"old a" and sorted(p.name for p in tmp_path.iterdir()) == ["a.exr"]
+
+
+@pytest.mark.parametrize("name, ext, fragment", [
+    ("x.png", ".exr", "ending in .exr"),
+    ("missing/x.exr", ".exr", "does not exist"),
+    ("a" * 300 + ".exr", ".exr", "too long"),
+    ("/dev/null", ".exr", "not a regular file"),
+    ("sub", ".exr", "is a folder"),
+    ("in.yaml", ".exr", "input of the scene"),
+    ("link.exr", ".exr", "input of the scene"),
+])
+def test_check_output_path(tmp_path, monkeypatch, name, ext, fragment):
+    from cloudmeta.errors import OutputError
+    from cloudmeta.io import check_output_path
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "in.yaml").write_text("x")
+    os.link(tmp_path / "in.yaml", tmp_path / "link.exr")  # a hard link to an input
+    with pytest.raises(OutputError, match=fragment):
+        check_output_path(name, ext, "-o", inputs=[str(tmp_path / "in.yaml")])
+    assert check_output_path("fine.exr", ".exr", "-o") == str(tmp_path / "fine.exr")
+
+
+def test_png_exposure_is_bounded(tmp_path):
+    with pytest.raises(InputError, match="exposure"):
+        write_png(np.zeros((2, 2, 3)), tmp_path / "a.png", exposure=2000)
+    assert not list(tmp_path.iterdir())

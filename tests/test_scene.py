@@ -340,3 +340,154 @@ def test_12_bad_overrides(tmp_path, override, key_path):
     with pytest.raises(SceneError) as exc:
         load_scene(write(tmp_path, BASE), **override)
     assert exc.value.key_path == key_path
+
+
+# --- issue #15: limits and the numeric domain, checked at load time with the key path -----------------------
+
+HOSTILE = [
+    ("width 1e9", ("image", "width"), 10 ** 9, "image.width", "<= 16384"),
+    ("width of 400 digits", ("image", "width"), 10 ** 400, "image.width", "an integer of 401 digits"),
+    ("100000 x 100000", ("image",), {"width": 16384, "height": 16384}, "image.height", "pixels"),
+    ("spp 2**64", ("image", "spp"), 2 ** 64, "image.spp", "<= 65536"),
+    ("spp 1e9", ("image", "spp"), 10 ** 9, "image.spp", "<= 65536"),
+    ("samples", ("image",), {"width": 8192, "height": 8192, "spp": 128}, "image.spp", "samples"),
+    ("shadow map 1e6", ("render", "shadow_map"), 10 ** 6, "render.shadow_map", "<= 8192"),
+    ("max_length 1e-12", ("render", "max_length"), 1e-12, "render.max_length", "steps"),
+    ("max_tau 1e-12", ("render", "max_tau"), 1e-12, "render.max_tau", "at least"),
+    ("root_tolerance 1e-20", ("render", "root_tolerance"), 1e-20, "render.root_tolerance", "diagonal"),
+    ("centre 1e308", B0 + ("center",), [1e308, 0, 0], "media[0].balls[0].center", "1e+100"),
+    ("centre far off", B0 + ("center",), [1e9, 0, 0], "media[0].balls[0].radius", "root tolerances"),
+    ("radius 1e308", B0 + ("radius",), 1e308, "media[0].balls[0].radius", "1e+100"),
+    ("radius 1e-300", B0 + ("radius",), 1e-300, "media[0].balls[0].radius", "1e-100"),
+    ("radius 1e-9", B0 + ("radius",), 1e-9, "media[0].balls[0].radius", "root tolerances"),
+    ("radii 1e-9", ("media", 0, "balls", 1, "radii"), [1, 1e-9, 1], "media[0].balls[1].radii", "root tolerances"),
+    ("camera 1e308", ("camera", "position"), [0, -1e308, 2], "camera.position", "1e+100"),
+    ("camera far off", ("camera", "position"), [0, -1e10, 2], "camera.position", "x the scene's diagonal"),
+    ("point light far off", ("lights", 1, "position"), [0, 0, 1e10], "lights[1].position", "diagonal"),
+    ("look_at too close", ("camera",), {"position": [0, 0, 0], "look_at": [1e-300, 0, 0]}, "camera.look_at",
+     "at least 1e-100"),
+    ("weight 1e308", B0 + ("weight",), 1e308, "media[0].balls[0].weight", "x threshold"),
+    ("threshold 1e-300", M0 + ("threshold",), 1e-300, "media[0].threshold", "1e-100"),
+    ("threshold true", M0 + ("threshold",), True, "media[0].threshold", "boolean"),
+    ("scale 1e308", M0 + ("density", "scale"), 1e308, "media[0].density.scale", "optical depth"),
+    ("irradiance 1e308", ("lights", 0, "irradiance"), 1e308, "lights[0].irradiance", "1e+30"),
+    ("intensity 1e308", ("lights", 1, "intensity"), 1e308, "lights[1].intensity", "diagonal^2"),
+    ("colour 1e308", ("lights", 0, "color"), [1e308, 1, 1], "lights[0].color", "1e+30"),
+    ("colour of 400 digits", ("background",), [10 ** 400, 0, 0], "background[0]", "finite"),
+    ("phase too sharp", M0 + ("phase",), {"type": "hg", "g": 0.9999999999999999}, "lights", "brightest radiance"),
+    ("exposure 2000", ("output", "exposure"), 2000, "output.exposure", "within +-64"),
+    ("fov 1e-300", ("camera", "fov"), 1e-300, "camera.fov", "(0, 180)"),
+    ("blobbiness 1e308", M0 + ("blobbiness",), 1e308, "media[0].blobbiness", "blinn"),  # wyvill6: refused anyway
+    ("rotation 1e300", ("media", 0, "balls", 1, "rotation"), [0, 0, 1e300], "media[0].balls[1].rotation", "1e6"),
+    ("direction 1e200 is fine", ("lights", 0, "direction"), [1e200, 0, 1e199], None, None),
+    ("up 1e-300 is fine", ("camera", "up"), [0, 0, 1e-300], None, None),
+]
+
+
+@pytest.mark.parametrize("what, path, value, key_path, fragment", HOSTILE, ids=[h[0] for h in HOSTILE])
+def test_13_limits_and_domain_name_the_key(tmp_path, what, path, value, key_path, fragment):
+    file = write(tmp_path, edit(path, value))
+    if key_path is None:
+        s = load_scene(file)
+        assert np.all(np.isfinite(s.camera.up)) and np.all(np.isfinite(s.lights[0].direction))
+        np.testing.assert_allclose(np.linalg.norm(s.lights[0].direction), 1.0)
+        return
+    with pytest.raises(SceneError) as exc:
+        load_scene(file)
+    assert exc.value.file == str(file) and exc.value.key_path == key_path, str(exc.value)
+    assert fragment in exc.value.detail, exc.value.detail
+    assert len(str(exc.value).splitlines()) == 1
+
+
+def test_14_memory_a_render_needs_is_checked(tmp_path, monkeypatch):
+    from cloudmeta import limits
+    monkeypatch.setattr(limits, "physical_memory", lambda: 2 ** 30)
+    with pytest.raises(SceneError) as exc:
+        load_scene(write(tmp_path, edit(("image",), {"width": 8192, "height": 4096})))
+    assert exc.value.key_path == "image" and "GiB" in exc.value.detail
+    with pytest.raises(SceneError) as exc:
+        load_scene(write(tmp_path, edit(("render", "shadow_map"), 4096)))
+    assert exc.value.key_path == "render.shadow_map"
+
+
+def _with_balls_file(tmp_path, target):
+    data = copy.deepcopy(BASE)
+    data["media"][0].pop("balls")
+    data["media"][0]["balls_file"] = str(target)
+    return write(tmp_path, data)
+
+
+@pytest.mark.parametrize("target", ["/dev/zero", "/dev/urandom", "fifo", "folder"])
+def test_15_balls_file_must_be_a_regular_file(tmp_path, target):
+    if target == "fifo":
+        os.mkfifo(tmp_path / "fifo")  # opening it for reading would block
+    if target == "folder":
+        (tmp_path / "folder").mkdir()
+    file = _with_balls_file(tmp_path, target if target.startswith("/") else tmp_path / target)
+    with pytest.raises(SceneError) as exc:
+        load_scene(file)
+    assert exc.value.key_path == "media[0].balls_file"
+    assert "not a regular file" in exc.value.detail or "a folder" in exc.value.detail
+
+
+@pytest.mark.parametrize("what, csv, fragment, absent", [
+    ("another file's first line", "root:$6$secret:19000:0:99999:7:::\n", "not a valid header (1 fields)", "secret"),
+    ("underscore", "x,y,z,radius,weight\n1_0,0,0,1,1\n", "line 2: expected finite numbers", None),
+    ("non-ASCII digits", "x,y,z,radius,weight\n\u0661,0,0,1,1\n", "line 2: expected finite numbers", None),
+    ("infinity", "x,y,z,radius,weight\n0,0,0,1,infinity\n", "line 2: expected finite numbers", None),
+    ("a long line", "x" * 10000, "longer than 4096", None),
+    ("binary", None, "UTF-8", None),
+    ("centre 1e308", "x,y,z,radius,weight\n1e308,0,0,1,1\n", "line 2: expected coordinates within", None),
+    ("radius 1e-300", "x,y,z,radius,weight\n0,0,0,1e-300,1\n", "line 2: expected radii from", None),
+    ("weight 1e308", "x,y,z,radius,weight\n0,0,0,1,1e308\n", "line 2: expected a weight", None),
+])
+def test_16_balls_csv_errors_quote_no_file_contents(tmp_path, what, csv, fragment, absent):
+    target = tmp_path / "balls.csv"
+    if csv is None:
+        target.write_bytes(bytes(range(128, 256)) * 4)
+    else:
+        target.write_text(csv, encoding="utf-8")
+    with pytest.raises(SceneError) as exc:
+        load_scene(_with_balls_file(tmp_path, target))
+    assert exc.value.key_path == "media[0].balls_file" and fragment in exc.value.detail, exc.value.detail
+    assert absent is None or absent not in str(exc.value)
+
+
+@pytest.mark.parametrize("what, text, fragment", [
+    ("complex key", "? [image, camera]\n: 1\n", "complex key"),
+    ("deep nesting", "image: " + "[" * 100000 + "]" * 100000 + "\n", "nested more than"),
+    ("deep block nesting", "image:\n" + "- " * 100000 + "x\n", "nested more than"),
+    ("recursive alias", "image: &a [*a]\n", "recursive alias"),
+    ("integer of 5000 digits", "image: {width: " + "9" * 5000 + "}\n", "4300 digits"),
+    ("a key that is a number", "1: 2\n", "a key that is text"),
+])
+def test_17_hostile_yaml(tmp_path, what, text, fragment):
+    file = write(tmp_path, text)
+    with pytest.raises(SceneError) as exc:
+        load_scene(file)
+    assert exc.value.file == str(file) and fragment in exc.value.detail
+    assert len(str(exc.value).splitlines()) == 1
+
+
+def test_18_scene_file_must_be_a_regular_file(tmp_path):
+    os.mkfifo(tmp_path / "scene.yaml")
+    for path in ("/dev/zero", tmp_path / "scene.yaml", tmp_path):
+        with pytest.raises(SceneError, match="not a regular file|a folder"):
+            load_scene(path)
+
+
+def test_19_inputs_are_recorded_for_the_output_checks(tmp_path):
+    (tmp_path / "spheres.csv").write_text(SPHERES_CSV)
+    data = copy.deepcopy(BASE)
+    data["media"][0].pop("balls")
+    data["media"][0]["balls_file"] = "spheres.csv"
+    s = load_scene(write(tmp_path, data))
+    assert s.inputs == (str(tmp_path / "scene.yaml"), str(tmp_path / "spheres.csv"))
+
+
+def test_20_render_overrides_are_validated(tmp_path):
+    s = load_scene(write(tmp_path, BASE), render={"quality": "draft", "shadow_map": 32, "shadows": None})
+    assert (s.render.quality, s.render.shadow_map, s.render.shadows) == ("draft", 32, "map")
+    with pytest.raises(SceneError) as exc:
+        load_scene(write(tmp_path, BASE), render={"shadow_map": 10 ** 6})
+    assert exc.value.key_path == "render.shadow_map"
