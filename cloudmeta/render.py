@@ -32,6 +32,7 @@ seen through less than ``cutoff`` of view transmittance is not shaded (like the 
 from __future__ import annotations
 
 import math
+import operator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -39,6 +40,7 @@ import numba
 import numpy as np
 
 from .engine import DENSITY_MODES, n_chunks
+from .errors import InputError
 from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
 from .kernels.radiance import DIRECTIONAL, POINT, render_pixels
 from .kernels.shadowmap import trace_texels
@@ -313,12 +315,17 @@ def quadrature():
             legendre_tail(gauss_x, gauss_w), y, w)
 
 
-def render(scene: Scene, progress=True, seed=0, depth=False):
+def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None):
     """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha.
 
     With ``depth=True`` returns (image, depth): depth (H x W, float64) is, per pixel, the distance along
     the camera ray to the nearest surface hit among its samples (inf where no sample meets a surface).
+    ``rows=(r0, r1)`` and ``columns=(c0, c1)`` render only that tile of the frame (rows r0 .. r1 - 1 from
+    the top), bit-identical to the same pixels of the whole frame: every pixel's rays and samples depend on
+    its place in the frame alone. A tile still allocates the whole frame's arrays (40 bytes a pixel).
     """
+    (r_lo, r_hi), (c_lo, c_hi) = _window(rows, scene.image.height, "rows"), _window(columns, scene.image.width,
+                                                                                     "columns")
     lo, hi = scene.bbox()
     q = resolve_quality(scene.render, float(np.linalg.norm(hi - lo)))
     media = pack_media(scene.media)
@@ -339,15 +346,18 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
     position = np.array(scene.camera.position, np.float64)
     image = np.zeros((h, w, 4), np.float64)
     nearest = np.full((h, w), np.inf)
-    bar = _progress(h, progress)
+    bar = _progress(r_hi - r_lo, progress)
     threads = numba.get_num_threads()
-    rows = max(1, min(MAX_BAND_ROWS, -(-h // (BANDS_PER_THREAD * threads))))
-    bands = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
+    rows = max(1, min(MAX_BAND_ROWS, -(-(r_hi - r_lo) // (BANDS_PER_THREAD * threads))))
+    bands = [(r0, min(r_hi, r0 + rows)) for r0 in range(r_lo, r_hi, rows)]
 
     def band(rows):
         r0, r1 = rows
-        render_pixels(r0, w, h, spp, seed, position, fwd, right, up, 0, (r1 - r0) * w, med, surf, lights, quad,
-                      background, ambient, image, nearest)
+        # a whole row is one run of pixels; part of a row (a tile) takes one call per row
+        runs = [(r0, 0, (r1 - r0) * w)] if (c_lo, c_hi) == (0, w) else [(r, c_lo, c_hi) for r in range(r0, r1)]
+        for row0, p0, p1 in runs:
+            render_pixels(row0, w, h, spp, seed, position, fwd, right, up, p0, p1, med, surf, lights, quad,
+                          background, ambient, image, nearest)
         return r1 - r0
 
     # each band is one call of a nogil kernel with its own work arrays, written to its own rows: threads
@@ -356,9 +366,23 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
         for done in pool.map(band, bands):
             bar.update(done)
     bar.close()
+    image, nearest = image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi]
     if depth:
-        return image.astype(np.float32), nearest
+        return image.astype(np.float32), nearest.copy()
     return image.astype(np.float32)
+
+
+def _window(span, size, name):
+    """(start, stop) of a tile's ``rows`` or ``columns``: the whole range when None."""
+    if span is None:
+        return 0, size
+    try:
+        start, stop = (operator.index(v) for v in span)
+    except (TypeError, ValueError):
+        start, stop = -1, -1
+    if not 0 <= start < stop <= size:
+        raise InputError(f"{name}: expected (start, stop) with 0 <= start < stop <= {size}, got {span!r}")
+    return start, stop
 
 
 def _media_bbox(scene):
