@@ -315,6 +315,11 @@ def frames_command(args):
     n_tiles = tiles if isinstance(tiles, int) else tiles[0] * tiles[1]
     print(f"cloudmeta: rendering {args.scene}: {span} {where}" + (f", {n_tiles} tiles a frame" if n_tiles > 1 else ""),
           flush=True)
+    from .config import is_compiled
+    from .kernels.radiance import render_pixels
+    if not is_compiled(render_pixels):
+        print("cloudmeta: compiling the kernels for this machine (once: about 2 minutes on 2 cores, then cached; "
+              "workers on this machine share the cache)", flush=True)
     start = time.perf_counter()
     report = render_frames(args.scene, frames, args.output, args.png, exposure=args.exposure, width=args.width,
                            height=args.height, spp=args.spp, render=render, tiles=tiles, overwrite=args.overwrite,
