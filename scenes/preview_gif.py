@@ -1,7 +1,7 @@
 """A GIF preview of an animated scene: its frames rendered (cloudmeta.render_frames) to PNGs, then joined by
 Pillow at the scene's fps.
 
-    python scenes/make_gif.py scenes/merging_clouds.yaml docs/merging_clouds.gif [--width 160 --height 90]
+    python scenes/preview_gif.py scenes/merging_clouds.yaml docs/merging_clouds.gif [--width 160 --height 90]
         [--quality draft] [--workers N] [--frames A:B[:STEP]]
 
 The PNGs go to a temporary folder (kept with --keep DIR); the GIF has an adaptive palette per frame.
