@@ -24,6 +24,7 @@ import logging
 import os
 import sys
 import uuid
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -294,8 +295,12 @@ def _dask_client(client, workers, scheduler):
         raise InputError(f"workers: expected an integer >= 1, got {workers!r}")
     # one task per worker process, each on its share of this machine's cores (a render uses threads)
     threads = max(1, (os.cpu_count() or 1) // workers)
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None, silence_logs=logging.ERROR) as cluster, Client(cluster) as c:
+    with warnings.catch_warnings():
+        # the scheduler's HTTP server (loopback) moves to a free port when 8787 is taken: no news to the user
+        warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, silence_logs=logging.ERROR)
+    with cluster, Client(cluster) as c:
         yield c, threads
 
 

@@ -127,3 +127,14 @@ def test_a_bad_frame_comes_back_as_the_scene_error(tmp_path, client):
     with pytest.raises(cm.SceneError, match=r"frame 2: media\[0\].balls\[0\].radius"):  # the first frame is not
         render_frames(path, [0, 2], tmp_path / "f_{frame}.exr", client=client, progress=False)
     assert set(os.listdir(tmp_path)) <= {"scene.yaml", "f_0.exr"}  # no partial file, nothing for frame 2
+
+
+def test_cli_workers_start_a_local_cluster(scene, local, tmp_path, capsys):
+    """--workers 2 --tiles 2x2: the command's own cluster (started and closed by it) writes the same bits."""
+    from cloudmeta.cli import main
+    assert main(["render", str(scene), "--frames", "1:3", "-o", str(tmp_path / "c_{frame}.exr"), "--workers", "2",
+                 "--tiles", "2x2", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "on a local cluster of 2 worker processes, 4 tiles a frame" in out and "rendered 2 frames" in out
+    for f in (1, 2):
+        assert np.array_equal(read(tmp_path / f"c_{f}.exr"), local[f])

@@ -19,6 +19,7 @@ import statistics
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -46,8 +47,10 @@ def main(argv=None):
     p.add_argument("--workers", type=int, default=2)
     args = p.parse_args(argv)
     from distributed import Client, LocalCluster
+    warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
 
     frames = range(args.frames)
+    load_before = os.getloadavg()[0]
     common = dict(width=args.size, height=args.size, render={"quality": args.quality}, overwrite=True,
                   progress=False)
     env = {"PYTHONPATH": str(ROOT)}  # the workers import this checkout's cloudmeta
@@ -74,8 +77,8 @@ def main(argv=None):
                                   cm.read_exr(out[k] / f"f_{f:04d}.exr")[0]) for f in frames for k in ("client", "cli"))
     local = statistics.median(times["local"])
     print(f"{args.frames} frames of {Path(args.scene).name} at {args.size} x {args.size}, quality {args.quality}, "
-          f"{os.cpu_count()} cores, {args.repeats} repeats (alternating), load average before: "
-          f"{os.getloadavg()[0]:.1f}")
+          f"{os.cpu_count()} cores, {args.repeats} repeats (alternating), load average {load_before:.1f} before, "
+          f"{os.getloadavg()[0]:.1f} after")
     print(f"{'run':<46}{'median s':>10}{'min..max s':>16}{'s / frame':>11}{'overhead':>10}")
     names = {"local": "this process (numba threads on every core)",
              "client": f"local cluster, {args.workers} workers, started before",
