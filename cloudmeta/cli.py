@@ -16,6 +16,11 @@ INTERRUPTED = 130
 
 
 def _render(args):
+    from .animation import load_animation
+    if any(v is not None for v in (args.frames, args.workers, args.scheduler, args.tiles)) or args.overwrite \
+            or load_animation(args.scene) is not None:
+        from .cluster import frames_command  # a sequence, tiles or a cluster (docs/animation.md)
+        return frames_command(args)
     from .io import atomic_outputs, check_distinct, check_output_path, encode_exr, encode_png
     from .limits import MAX_EXPOSURE
     from .scene import load_scene
@@ -128,6 +133,13 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
+def _positive(text):
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text}")
+    return value
+
+
 def build_parser():
     parser = _Parser(prog="cloudmeta", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -145,6 +157,14 @@ def build_parser():
     r.add_argument("--shadow-map", type=_texels, help="texels per side of a shadow map (default 384)")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: the scene's)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    a = r.add_argument_group("sequences and clusters (docs/animation.md)")
+    a.add_argument("--frames", help="frames A:B[:STEP] (A to B - 1) or N; -o and --png then take {frame} fields, "
+                                    "e.g. out/f_{frame:04d}.exr (default: the scene's animation frames)")
+    a.add_argument("--overwrite", action="store_true", help="render frames whose files exist again (else skipped)")
+    a.add_argument("--tiles", help="cut each frame into K bands of rows or an RxC grid of tiles (tasks)")
+    on = a.add_mutually_exclusive_group()
+    on.add_argument("--workers", type=_positive, help="render on a local Dask cluster of N worker processes")
+    on.add_argument("--scheduler", help="render on the running Dask cluster at this address (tcp://host:8786)")
     r.set_defaults(run=_render)
 
     i = sub.add_parser("inspect", help="look at a scene's field and density in 3D (pyvista)")

@@ -32,6 +32,7 @@ seen through less than ``cutoff`` of view transmittance is not shaded (like the 
 """
 from __future__ import annotations
 
+import operator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -79,14 +80,19 @@ def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
                    tol_t=float(pick("root_tolerance")) * diagonal)
 
 
-def render(scene: Scene, progress=True, seed=0, depth=False):
+def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None):
     """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha.
 
     With ``depth=True`` returns (image, depth): depth (H x W, float64) is, per pixel, the distance along
     the camera ray to the nearest surface hit among its samples (inf where no sample meets a surface).
+    ``rows=(r0, r1)`` and ``columns=(c0, c1)`` render only that tile of the frame (rows r0 .. r1 - 1 from
+    the top), bit-identical to the same pixels of the whole frame: every pixel's rays and samples depend on
+    its place in the frame alone. A tile still allocates the whole frame's arrays (40 bytes a pixel).
     """
     if not isinstance(scene, Scene):  # issue #15: the API's wrong types are InputErrors naming the argument
         raise InputError(f"scene: expected a cloudmeta Scene (from load_scene), got {type(scene).__name__}")
+    (r_lo, r_hi), (c_lo, c_hi) = _window(rows, scene.image.height, "rows"), _window(columns, scene.image.width,
+                                                                                     "columns")
     lo, hi = scene.bbox()
     quad = quadrature(resolve_quality(scene.render, float(np.linalg.norm(hi - lo))))
     records = scene_records(scene, quad, scene.render.shadow_map or SHADOW_MAP_RESOLUTION)
@@ -94,14 +100,17 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
     w, h = scene.image.width, scene.image.height
     image = np.zeros((h, w, 4), np.float64)
     nearest = np.full((h, w), np.inf)
-    bar = _progress(h, progress)
+    bar = _progress(r_hi - r_lo, progress)
     threads = numba.get_num_threads()
-    rows = max(1, min(MAX_BAND_ROWS, -(-h // (BANDS_PER_THREAD * threads))))
-    bands = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
+    rows = max(1, min(MAX_BAND_ROWS, -(-(r_hi - r_lo) // (BANDS_PER_THREAD * threads))))
+    bands = [(r0, min(r_hi, r0 + rows)) for r0 in range(r_lo, r_hi, rows)]
 
     def band(rows):
         r0, r1 = rows
-        render_pixels(camera, records, quad, r0, 0, (r1 - r0) * w, image, nearest)
+        # a whole row is one run of pixels; part of a row (a tile) takes one call per row
+        runs = [(r0, 0, (r1 - r0) * w)] if (c_lo, c_hi) == (0, w) else [(r, c_lo, c_hi) for r in range(r0, r1)]
+        for row0, p0, p1 in runs:
+            render_pixels(camera, records, quad, row0, p0, p1, image, nearest)
         return r1 - r0
 
     # each band is one call of a nogil kernel with its own work arrays, written to its own rows: threads
@@ -110,9 +119,23 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
         for done in pool.map(band, bands):
             bar.update(done)
     bar.close()
+    image, nearest = image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi]
     if depth:
-        return image.astype(np.float32), nearest
+        return image.astype(np.float32), nearest.copy()
     return image.astype(np.float32)
+
+
+def _window(span, size, name):
+    """(start, stop) of a tile's ``rows`` or ``columns``: the whole range when None."""
+    if span is None:
+        return 0, size
+    try:
+        start, stop = (operator.index(v) for v in span)
+    except (TypeError, ValueError):
+        start, stop = -1, -1
+    if not 0 <= start < stop <= size:
+        raise InputError(f"{name}: expected (start, stop) with 0 <= start < stop <= {size}, got {span!r}")
+    return start, stop
 
 
 class _NoBar:

@@ -787,10 +787,11 @@ def _read_yaml(ctx):
         ctx.fail(None, f"invalid YAML: {type(exc).__name__} {_short_repr(str(exc))}")
 
 
-def load_scene(path, width=None, height=None, spp=None, render=None) -> Scene:
+def load_scene(path, width=None, height=None, spp=None, render=None, frame=None) -> Scene:
     """Read and validate the YAML scene at ``path``; ``width``, ``height``, ``spp`` override its image settings,
     ``render`` (a dict) its ``render:`` keys, validated like the file's own.
 
+    An animated scene (keyframes, ``animation:``, docs/animation.md) is read at ``frame`` (default 0).
     Raises SceneError (file, key path, what was expected) on the first problem found; a scene outside the
     limits or the numeric domain (cloudmeta.limits, README "Limits") is refused too.
     """
@@ -799,6 +800,14 @@ def load_scene(path, width=None, height=None, spp=None, render=None) -> Scene:
     if not isinstance(data, dict):
         ctx.fail(None, f"expected a mapping of sections (image, camera, media, ...) at the top level, "
                        f"got {_describe(data)}")
+    from .animation import naming_frame, resolve_frame  # here: animation.py reads this module's helpers
+    data, animated = resolve_frame(ctx.file, data, frame)
+    with naming_frame((frame or 0) if animated else None):
+        return _scene(ctx, data, width, height, spp, render)
+
+
+def _scene(ctx, data, width, height, spp, render):
+    """The Scene of the static YAML document ``data`` (a mapping) of ``ctx``'s file."""
     top = _Node(ctx, "", data, ("image", "camera", "background", "ambient", "lights", "media", "surfaces",
                                 "render", "output"))
     render = _render(top, render)  # first: colours depend on its colourspace
