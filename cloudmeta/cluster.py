@@ -315,7 +315,7 @@ def frames_command(args):
                                 ("shadow_map", args.shadow_map)) if v is not None}
     where = (f"on a local cluster of {args.workers} worker processes" if args.workers is not None
              else f"on the cluster at {args.scheduler}" if args.scheduler is not None else "in this process")
-    span = "the scene's frames" if frames is None else f"frames {frames.start}..{frames.stop - 1}" + (
+    span = "the scene's frames" if frames is None else f"frames {frames[0]}..{frames[-1]}" + (
         f" step {frames.step}" if frames.step != 1 else "")
     n_tiles = tiles if isinstance(tiles, int) else tiles[0] * tiles[1]
     print(f"cloudmeta: rendering {args.scene}: {span} {where}" + (f", {n_tiles} tiles a frame" if n_tiles > 1 else ""),
