@@ -20,11 +20,8 @@ number of threads, so a frame is bit-identical however it is cut into tiles and 
 from __future__ import annotations
 
 import contextlib
-import logging
 import os
 import sys
-import uuid
-import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -247,6 +244,8 @@ def _assemble(first, tiles):
 
 def _run_on_cluster(client, jobs, windows, first, retries, write, bar):
     """Every tile of every job as a task; each frame written as soon as all its tiles are back."""
+    import uuid
+
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]
@@ -279,6 +278,8 @@ def _run_on_cluster(client, jobs, windows, first, retries, write, bar):
 @contextlib.contextmanager
 def _dask_client(client, workers, scheduler):
     """(client, numba threads per task): the given client, a running scheduler's, or a local cluster's."""
+    import logging
+    import warnings
     if client is not None:
         yield client, None
         return
@@ -315,7 +316,7 @@ def frames_command(args):
                                 ("shadow_map", args.shadow_map)) if v is not None}
     where = (f"on a local cluster of {args.workers} worker processes" if args.workers is not None
              else f"on the cluster at {args.scheduler}" if args.scheduler is not None else "in this process")
-    span = "the scene's frames" if frames is None else f"frames {frames.start}..{frames.stop - 1}" + (
+    span = "the scene's frames" if frames is None else f"frames {frames[0]}..{frames[-1]}" + (
         f" step {frames.step}" if frames.step != 1 else "")
     n_tiles = tiles if isinstance(tiles, int) else tiles[0] * tiles[1]
     print(f"cloudmeta: rendering {args.scene}: {span} {where}" + (f", {n_tiles} tiles a frame" if n_tiles > 1 else ""),

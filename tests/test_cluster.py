@@ -58,6 +58,11 @@ def test_tiles_in_this_process_equal_the_whole_frame(scene, local, tmp_path):
     for rows, cols in tile_windows(16, 24, (2, 2)):
         tiles[rows[0]:rows[1], cols[0]:cols[1]] = cm.render(image, progress=False, rows=rows, columns=cols)
     assert np.array_equal(tiles, local[1])
+    jittered = cm.load_scene(scene, frame=1, spp=4)  # stratified, jittered samples: hashed per pixel too
+    whole = cm.render(jittered, progress=False)
+    for rows, cols in tile_windows(16, 24, (3, 2)):
+        tile = cm.render(jittered, progress=False, rows=rows, columns=cols)
+        assert np.array_equal(tile, whole[rows[0]:rows[1], cols[0]:cols[1]])
     report = render_frames(scene, [1], tmp_path / "t.exr", tiles=3, progress=False)
     assert report.rendered == [1] and np.array_equal(read(tmp_path / "t.exr"), local[1])
 
