@@ -150,6 +150,8 @@ class Scene:
 # ------------------------------------------------------------------------------- typed getter layer
 
 _REQUIRED = object()
+#: what an unknown key may look like to be quoted in an error (scene keys are names)
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_ -]{0,39}")
 
 
 _REPR = reprlib.Repr()
@@ -240,6 +242,9 @@ class _Node:
                 self.fail(_short_repr(k), f"expected a key that is text, got {_describe(k)}; "
                                           f"expected one of: {', '.join(allowed) or 'no keys'}")
             if k not in allowed:
+                if not _NAME.fullmatch(k):  # not a name: perhaps a line of a file that is no scene, never quoted
+                    self.fail(f"<a key of {len(k)} characters>", f"unknown key, not a name; expected one of: "
+                                                                f"{', '.join(allowed) or 'no keys'}")
                 close = difflib.get_close_matches(str(k), list(allowed), n=1)
                 hint = f" (did you mean {close[0]!r}?)" if close else ""
                 self.fail(k, f"unknown key{hint}; expected one of: {', '.join(allowed) or 'no keys'}")
@@ -798,8 +803,9 @@ def load_scene(path, width=None, height=None, spp=None, render=None, frame=None)
     ctx = _Context(path)
     data = _read_yaml(ctx)
     if not isinstance(data, dict):
-        ctx.fail(None, f"expected a mapping of sections (image, camera, media, ...) at the top level, "
-                       f"got {_describe(data)}")
+        # the type only: a file that is not a scene (``cloudmeta render /etc/shadow``) must not be quoted
+        got = "null" if data is None else {list: "a list", str: "a text"}.get(type(data), type(data).__name__)
+        ctx.fail(None, f"expected a mapping of sections (image, camera, media, ...) at the top level, got {got}")
     from .animation import naming_frame, resolve_frame  # here: animation.py reads this module's helpers
     data, animated = resolve_frame(ctx.file, data, frame)
     with naming_frame((frame or 0) if animated else None):

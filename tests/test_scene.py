@@ -491,3 +491,12 @@ def test_20_render_overrides_are_validated(tmp_path):
     with pytest.raises(SceneError) as exc:
         load_scene(write(tmp_path, BASE), render={"shadow_map": 10 ** 6})
     assert exc.value.key_path == "render.shadow_map"
+
+
+@pytest.mark.parametrize("text", ["root:$6$secretHASH:19000:0:99999:7:::\ndaemon:*:19000:0:99999:7:::\n",
+                                  "root:$6$secretHASH:19000\n", "- root:$6$secretHASH\n"])
+def test_21_a_file_that_is_no_scene_is_not_quoted(tmp_path, text):
+    """``cloudmeta render /etc/shadow``: refused without echoing a line of the file."""
+    with pytest.raises(SceneError) as exc:
+        load_scene(write(tmp_path, text))
+    assert "secret" not in str(exc.value)
