@@ -18,7 +18,7 @@ import numpy as np
 import yaml
 
 from .blob import KERNELS, Blob
-from .colour import DEFAULT_COLOURSPACE, parse_colour, working_colourspace
+from .colour import DEFAULT_COLOURSPACE, colourspace_name, parse_colour
 from .errors import InputError, SceneError
 
 QUALITIES = ("draft", "default", "fine", "reference")
@@ -484,7 +484,7 @@ def _render(top):
     n = top.node("render", tuple(f.name for f in fields(RenderSettings)), {})
     colourspace = n.string("colourspace", DEFAULT_COLOURSPACE)
     try:
-        colourspace = working_colourspace(colourspace).name  # canonical spelling
+        colourspace = colourspace_name(colourspace)  # canonical spelling
     except InputError:
         n.fail("colourspace", f"expected the name of a colour-science RGB colourspace such as "
                               f"{DEFAULT_COLOURSPACE!r} or 'ACEScg', got {colourspace!r}")
