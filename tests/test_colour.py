@@ -173,7 +173,8 @@ def test_19_srgb_table_reproduces_colour_science_for_every_double_tried():
 
     thresholds = cc._srgb_thresholds()
     rng = np.random.default_rng(3)
-    x = np.concatenate([rng.uniform(-0.1, 1.2, 200_000), rng.uniform(0, 0.01, 100_000), 10.0 ** rng.uniform(-12, 0, 100_000),
+    x = np.concatenate([rng.uniform(-0.1, 1.2, 200_000), rng.uniform(0, 0.01, 100_000),
+                        10.0 ** rng.uniform(-12, 0, 100_000),
                         thresholds, np.nextafter(thresholds, -np.inf), np.nextafter(thresholds, np.inf),
                         [0.0, -0.0, 0.0031308, 1.0, 2.0, -1.0, 5e-324]])
     expected = np.rint(np.clip(colour.cctf_encoding(x, function="sRGB"), 0.0, 1.0) * 255.0).astype(np.uint8)
