@@ -103,6 +103,21 @@ def _values():
     return _STORE["values"]
 
 
+def _write_store(path, values):
+    """The whole store, written to a temporary file in its folder and renamed into place."""
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "w") as f:
+            json.dump(values, f)
+        os.replace(tmp, path)
+    except OSError:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+        # nowhere to write: the next process asks colour-science again
+
+
 def _stored(key, compute):
     """``compute()`` (a JSON value: lists of floats round-trip exactly), kept in the store under ``key``."""
     values = _values()
@@ -110,14 +125,7 @@ def _stored(key, compute):
         values[key] = compute()
         path = _STORE["path"]
         if path is not None:
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
-                with os.fdopen(fd, "w") as f:
-                    json.dump(values, f)
-                os.replace(tmp, path)
-            except OSError:
-                pass  # nowhere to write: the next process asks colour-science again
+            _write_store(path, values)
     return values[key]
 
 
