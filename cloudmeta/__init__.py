@@ -6,16 +6,43 @@ The public API:
   ``first_hit``: the exact ray engine, vectorised over rays; ``field``, ``gradient``, ``normal`` at points.
 - ``load_scene``, ``render``, ``write_exr``, ``read_exr``, ``write_png``: YAML scene to image.
 - ``render_frames``: a sequence of frames (keyframed scenes), whole or in tiles, here or on a Dask cluster.
+
+The names are imported on first use (PEP 562): a process loads only the modules its work needs (the
+scene loader, the EXR writer and colour-science, the vectorised engine, each when first asked for).
+``render`` alone is imported here: it is also the name of its submodule, which the import system binds
+on the package whenever ``cloudmeta.render`` is imported, and only this order keeps ``cloudmeta.render``
+the function. Its module is what every render needs anyway (numba and the kernels' dispatchers; no
+compiled code is loaded until the first call).
 """
-from .blob import Blob
-from .cluster import render_frames
-from .engine import field, first_hit, gradient, normal, optical_depth, roots, segments
-from .errors import CloudmetaError, InputError, SceneError
-from .io import read_exr, write_exr, write_png
+import importlib
+
 from .render import render
-from .scene import load_scene
+
+#: public name -> the submodule that defines it
+_EXPORTS = {
+    "Blob": "blob",
+    "field": "engine", "first_hit": "engine", "gradient": "engine", "normal": "engine",
+    "optical_depth": "engine", "roots": "engine", "segments": "engine",
+    "CloudmetaError": "errors", "InputError": "errors", "SceneError": "errors",
+    "read_exr": "io", "write_exr": "io", "write_png": "io",
+    "load_scene": "scene",
+    "render_frames": "cluster",
+}
 
 __all__ = ["Blob", "field", "first_hit", "gradient", "normal", "optical_depth", "roots", "segments", "load_scene",
            "render", "render_frames", "write_exr", "read_exr", "write_png", "CloudmetaError", "InputError",
            "SceneError"]
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'cloudmeta' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later lookups skip this hook
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

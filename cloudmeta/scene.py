@@ -23,7 +23,7 @@ import yaml
 
 from . import limits as lim
 from .blob import KERNELS, Blob
-from .colour import DEFAULT_COLOURSPACE, parse_colour, working_colourspace
+from .colour import DEFAULT_COLOURSPACE, colourspace_name, parse_colour
 from .errors import InputError, SceneError
 
 QUALITIES = ("draft", "default", "fine", "reference")
@@ -643,7 +643,7 @@ def _render(top, overrides=None):
         n = _Node(n.ctx, n.path, dict(n.data, **{k: v for k, v in overrides.items() if v is not None}))
     colourspace = n.string("colourspace", DEFAULT_COLOURSPACE)
     try:
-        colourspace = working_colourspace(colourspace).name  # canonical spelling
+        colourspace = colourspace_name(colourspace)  # canonical spelling
     except InputError:
         n.fail("colourspace", f"expected the name of a colour-science RGB colourspace such as "
                               f"{DEFAULT_COLOURSPACE!r} or 'ACEScg', got {colourspace!r}")

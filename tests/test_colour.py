@@ -105,3 +105,77 @@ def test_14_encode_srgb_converts_other_primaries():
 def test_15_encode_srgb_refuses_nan():
     with pytest.raises(InputError, match="linear_rgb"):
         encode_srgb([np.nan, 0, 0])
+
+
+def _fresh_store(monkeypatch, folder):
+    import cloudmeta.colour as cc
+    monkeypatch.setenv("CLOUDMETA_CACHE_DIR", str(folder))
+    monkeypatch.delenv("CLOUDMETA_NO_CACHE", raising=False)
+    monkeypatch.setattr(cc, "_STORE", None)
+    cc._xyz_blackbody.cache_clear()
+    cc._xyz_illuminant.cache_clear()
+    return cc
+
+
+def test_16_stored_numbers_are_colour_sciences_bit_for_bit(monkeypatch, tmp_path):
+    import colour
+
+    cc = _fresh_store(monkeypatch, tmp_path)
+    computed = [parse_colour({"temperature": 5200}, "c"), parse_colour({"illuminant": "A"}, "c", "ACEScg"),
+                np.array(chromaticities("ACEScg"))]
+    assert len(list(tmp_path.glob("colour-*.json"))) == 1
+    cc = _fresh_store(monkeypatch, tmp_path)  # a later process: read back from the file
+    stored = [parse_colour({"temperature": 5200}, "c"), parse_colour({"illuminant": "A"}, "c", "ACEScg"),
+              np.array(chromaticities("ACEScg"))]
+    for a, b in zip(computed, stored):
+        np.testing.assert_array_equal(a, b)
+    xyz = np.array(cc._xyz_unit_luminance(colour.sd_blackbody(5200.0)))
+    np.testing.assert_array_equal(stored[0], np.maximum(
+        colour.RGB_COLOURSPACES[DEFAULT_COLOURSPACE].matrix_XYZ_to_RGB @ xyz, 0.0))
+
+
+def test_17_unknown_names_still_fail_with_a_store(monkeypatch, tmp_path):
+    _fresh_store(monkeypatch, tmp_path)
+    parse_colour([1, 1, 1], "c")
+    with pytest.raises(InputError, match="colourspace"):
+        parse_colour([1, 1, 1], "c", "Not A Space")
+    with pytest.raises(ValueError, match="c.illuminant"):
+        parse_colour({"illuminant": "NOPE"}, "c")
+
+
+def test_18_a_render_imports_neither_colour_science_nor_plotting_libraries(tmp_path):
+    """With its colours stored, loading and rendering a scene and writing its EXR and PNG imports none of
+    colour-science, matplotlib, pyvista, tqdm (no progress bar)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    probe = (
+        "import sys, cloudmeta as cm\n"
+        f"s = cm.load_scene({str(root / 'scenes' / 'cumulus.yaml')!r}, width=4, height=3)\n"
+        "img = cm.render(s, progress=False)\n"
+        f"cm.write_exr(img, {str(tmp_path / 'x.exr')!r})\n"
+        "print(sorted(m for m in ('colour', 'matplotlib', 'pyvista', 'tqdm') if m in sys.modules))\n"
+        f"cm.write_png(img, {str(tmp_path / 'x.png')!r})\n"
+        "print(sorted(m for m in ('colour', 'matplotlib', 'pyvista', 'tqdm') if m in sys.modules))\n")
+    env = dict(os.environ, PYTHONPATH=str(root))
+    runs = [subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+            for _ in range(2)]  # the first may have to store the colours
+    assert runs[1].stdout.splitlines() == ["[]", "[]"]
+
+
+def test_19_srgb_table_reproduces_colour_science_for_every_double_tried():
+    import colour
+
+    import cloudmeta.colour as cc
+
+    thresholds = cc._srgb_thresholds()
+    rng = np.random.default_rng(3)
+    x = np.concatenate([rng.uniform(-0.1, 1.2, 200_000), rng.uniform(0, 0.01, 100_000),
+                        10.0 ** rng.uniform(-12, 0, 100_000),
+                        thresholds, np.nextafter(thresholds, -np.inf), np.nextafter(thresholds, np.inf),
+                        [0.0, -0.0, 0.0031308, 1.0, 2.0, -1.0, 5e-324]])
+    expected = np.rint(np.clip(colour.cctf_encoding(x, function="sRGB"), 0.0, 1.0) * 255.0).astype(np.uint8)
+    np.testing.assert_array_equal(encode_srgb(np.repeat(x[:, None], 3, axis=1))[:, 0], expected)

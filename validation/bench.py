@@ -1,6 +1,14 @@
-"""Speed benchmark: compile times, BVH build, rays per second, and render time and error.
+"""Speed benchmark: start-up, compile times, BVH build, rays per second, and render time and error.
 
 Prints, in one run:
+- start-up (issue #14): the whole process ``python -m cloudmeta.cli render scenes/cumulus.yaml --width 4
+  --height 3`` with a warm kernel cache, median and spread of ``--repeats`` runs (with ``--against DIR``
+  alternating with the same command in another checkout DIR, e.g. the version before a change), and the
+  wall time of ``python -c "import cloudmeta"`` next to that of ``python -c pass``;
+- with ``--cold``: the first render of the cumulus (4 x 3) from an empty kernel cache in a fresh process,
+  split into compiling and the rest, with the functions that take longest to compile
+  (validation/compile_profile.py; minutes);
+- with ``--peer``: the POV-Ray comparison of validation/povray_peer.py when ``povray`` is on PATH;
 - JIT compile time, cold (an empty cache, in a fresh process) and cached (a second fresh process), each
   as the wall time of a process that imports cloudmeta and renders a 16 x 16 image;
 - BVH build time for 1,000 to 100,000 balls;
@@ -12,7 +20,8 @@ Prints, in one run:
   sheet over a fixed area whose balls shrink as N^(-1/2), so that a ray meets about as many balls at every
   N and the time measures the cost of culling, not of deeper clouds.
 
-    python -m validation.bench [--size 512] [--scale-size 256] [--quick]
+    python -m validation.bench [--size 512] [--scale-size 256] [--quick] [--repeats 7] [--cold] [--peer]
+    python -m validation.bench --startup [--against /tmp/old-checkout] [--cold] [--peer]   # #14's figures only
 
 Writes validation/results/bench.csv.
 """
@@ -21,6 +30,7 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -55,6 +65,75 @@ def process_time(cache_dir):
     start = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, check=True)
     return time.perf_counter() - start, float(out.stdout.strip().splitlines()[-1])
+
+
+def whole_process(argv, cwd, env=None):
+    start = time.perf_counter()
+    subprocess.run(argv, cwd=cwd, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    return time.perf_counter() - start
+
+
+def startup_commands(root, out):
+    """The 4 x 3 CLI render of the cumulus run from checkout ``root`` (PYTHONPATH and cwd), its EXR and
+    PNG (the scene asks for one) written to ``out``."""
+    env = dict(os.environ, PYTHONPATH=str(root))
+    render = [sys.executable, "-m", "cloudmeta.cli", "render", "scenes/cumulus.yaml", "--width", "4", "--height", "3",
+              "-o", str(Path(out) / "x.exr"), "--png", str(Path(out) / "x.png"), "-q"]
+    return {"render": (render, root, env),
+            "import": ([sys.executable, "-c", "import cloudmeta"], root, env),
+            "python": ([sys.executable, "-c", "pass"], root, env)}
+
+
+def median_spread(values):
+    return statistics.median(values), min(values), max(values)
+
+
+def startup(repeats, against=None):
+    """{(label, what): [wall times]} of the start-up commands, every command of every checkout in turn
+    (one untimed round first: it fills the kernel and colour caches where they are empty)."""
+    roots = {"this checkout": ROOT}
+    if against is not None:
+        roots["--against"] = Path(against).resolve()
+    with tempfile.TemporaryDirectory() as out:
+        commands = {(label, what): cmd for label, root in roots.items()
+                    for what, cmd in startup_commands(root, out).items()}
+        for argv, cwd, env in commands.values():
+            whole_process(argv, cwd, env)
+        times = {key: [] for key in commands}
+        for _ in range(repeats):
+            for key, (argv, cwd, env) in commands.items():
+                times[key].append(whole_process(argv, cwd, env))
+    return times
+
+
+def cold_compile():
+    """The compile_profile --cold summary of a fresh process: (wall of the process, its result lines)."""
+    start = time.perf_counter()
+    out = subprocess.run([sys.executable, "-m", "validation.compile_profile", "--cold", "--top", "8"], cwd=ROOT,
+                         env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True, check=True)
+    return time.perf_counter() - start, out.stdout
+
+
+def issue14(report, repeats, against, cold, peer):
+    """The figures of issue #14: start-up, import time, and (opt-in) cold compile and the POV-Ray peer."""
+    times = startup(repeats, against)
+    for (label, what), values in times.items():
+        med, lo, hi = median_spread(values)
+        name = {"render": "4x3 cumulus render, warm cache, whole process",
+                "import": "python -c 'import cloudmeta'", "python": "python -c pass"}[what]
+        report(f"{name} ({label}): median", med, "s")
+        report(f"  spread (min-max) of {len(values)} runs", hi - lo, f"s  ({lo:.3f}-{hi:.3f})")
+    if against is not None:
+        ratio = (statistics.median(times[("this checkout", "render")])
+                 / statistics.median(times[("--against", "render")]))
+        report("4x3 render: this checkout / --against (medians)", ratio, "x")
+    if cold:
+        wall, text = cold_compile()
+        report("cold start: fresh process, empty cache, 4x3 cumulus (whole process)", wall, "s")
+        print(textwrap.indent(text.rstrip(), "    "))
+    if peer:
+        from validation import povray_peer
+        povray_peer.main(["--repeats", str(max(1, repeats // 2 + 1))])
 
 
 def sheet_scene(n, size, path):
@@ -112,6 +191,11 @@ def main(argv=None, quick=False):
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--scale-size", type=int, default=256)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--repeats", type=int, default=7, help="runs of each start-up command (default 7)")
+    ap.add_argument("--against", help="another checkout: its start-up alternates with this one's")
+    ap.add_argument("--cold", action="store_true", help="also the first render from an empty cache (minutes)")
+    ap.add_argument("--peer", action="store_true", help="also the POV-Ray comparison (needs povray)")
+    ap.add_argument("--startup", action="store_true", help="only issue #14's figures")
     args = ap.parse_args(argv)
     quick = quick or args.quick
     size, scale_size = (32, 24) if quick else (args.size, args.scale_size)
@@ -120,7 +204,11 @@ def main(argv=None, quick=False):
 
     def report(what, value, unit):
         rows.append(dict(what=what, value=value, unit=unit))
-        print(f"{what:62s} {value:12.4g} {unit}")
+        print(f"{what:62s} {value:12.4g} {unit}", flush=True)
+
+    issue14(report, 3 if quick else args.repeats, args.against, args.cold, args.peer)
+    if args.startup:
+        return dict(rows=rows, passed=True)
 
     if not quick:
         with tempfile.TemporaryDirectory() as cache:
