@@ -74,6 +74,14 @@ def numpy_reference(path, pixels, rtol):
     return rad, trans, time.perf_counter() - t0, n_eval
 
 
+def tighter_vs_numpy(name):
+    """Relative RMSE of the cached tighter image against the cached numpy pixels."""
+    pixels = np.load(S.CACHE / f"{name}.pixels.npy")
+    rad = np.load(S.CACHE / f"{name}.numpy.npy")
+    got = np.load(S.CACHE / f"{name}.tighter.npy").astype(np.float64)[pixels[:, 0], pixels[:, 1], :3]
+    return float(np.sqrt(np.mean((got - rad) ** 2)) / np.sqrt(np.mean(rad ** 2)))
+
+
 def _save(path, array):
     """np.save atomically (a temporary file in the same folder, renamed into place)."""
     tmp = path.with_name(path.name + ".tmp.npy")
@@ -145,25 +153,27 @@ def main(argv=None, quick=False):
     rows = [S.cached(p.stem)[2] for p in S.scene_paths() if S.cached(p.stem) is not None]  # the whole cache
     print("\nAccuracy suite: converged references (cm.render, quality reference) and their checks\n")
     head = (f"{'scene':22s} {'size':>6s} {'ref s':>6s} {'tight s':>7s} {'vs tighter':>10s} {'worst px':>9s} "
-            f"{'numpy px':>8s} {'vs numpy':>9s} {'worst px':>9s} {'alpha':>8s} {'numpy s':>7s}  result")
+            f"{'numpy px':>8s} {'vs numpy':>9s} {'worst px':>9s} {'alpha':>8s} {'numpy s':>7s} {'tight/np':>8s}  result")
     print(head)
     print("-" * len(head))
     passed = True
     for m in rows:
+        m["tighter_vs_numpy"] = tighter_vs_numpy(m["scene"]) if "numpy_rel_rmse" in m else float("nan")
         ok = m["finite"] and m["ref_vs_tighter"] < CONVERGED
         has = "numpy_rel_rmse" in m
         if has:
             ok = ok and m["numpy_rel_rmse"] < AGREE
         passed = passed and ok
         num = (f"{m['numpy_pixels']:8d} {m['numpy_rel_rmse']:9.2e} {m['numpy_worst_pixel']:9.2e} "
-               f"{m['numpy_alpha_max_abs']:8.1e} {m['numpy_s']:7.1f}") if has else f"{'-':>8s} {'-':>9s} {'-':>9s} " \
-                                                                             f"{'-':>8s} {'-':>7s}"
+               f"{m['numpy_alpha_max_abs']:8.1e} {m['numpy_s']:7.1f} {m['tighter_vs_numpy']:8.1e}") if has else \
+            f"{'-':>8s} {'-':>9s} {'-':>9s} {'-':>8s} {'-':>7s} {'-':>8s}"
         print(f"{m['scene']:22s} {m['width']:>3d}x{m['height']:<2d} {m['reference_s']:6.1f} {m['tighter_s']:7.1f} "
               f"{m['ref_vs_tighter']:10.2e} {m['ref_vs_tighter_worst_pixel']:9.2e} {num}  "
               f"{'PASS' if ok else 'FAIL'}")
     print(f"\nvs tighter: rel. RMSE of the reference against the tighter setting (whole image); vs numpy: against "
           f"the independent numpy reference (rtol {args.rtol:g}) on a grid of the image's pixels (numpy px of them); worst px: "
-          "max over pixels of max_c |diff| / max_c ref; alpha: max |alpha - (1 - T)| on those pixels.")
+          "max over pixels of max_c |diff| / max_c ref; alpha: max |alpha - (1 - T)| on those pixels; tight/np: the "
+          "tighter image against the numpy reference on the same pixels.")
     print(f"{'PASS' if passed else 'FAIL'}: every reference within {CONVERGED:g} of the tighter image and within "
           f"{AGREE:g} of the numpy reference   [{elapsed:.1f} s]")
     RESULTS.mkdir(exist_ok=True)
