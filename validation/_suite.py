@@ -10,9 +10,10 @@ Error measure (the same as validation/render_quality.py's ``rel_rmse``, over the
 
     rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / sqrt(mean over pixels and RGB of L_ref^2)
 
-and the worst pixel's relative error, max over pixels of max_c |L - L_ref| / max_c L_ref (the largest
-channel of the reference pixel: background pixels are never 0 where a background is set, and dark pixels
-are not divided by their own small channels).
+the same relative to the scattered light alone (``rel_rmse_scattered``: the background's share removed from
+the denominator, so that a bright sky does not dilute the error), and the worst pixel's relative error,
+max over pixels of max_c |L - L_ref| / max_c L_ref (the largest channel of the reference pixel: dark
+pixels are not divided by their own small channels).
 """
 from __future__ import annotations
 
@@ -88,6 +89,17 @@ def rel_rmse(img, ref):
     a = np.asarray(img, np.float64)[..., :3]
     b = np.asarray(ref, np.float64)[..., :3]
     return float(np.sqrt(np.mean((a - b) ** 2)) / np.sqrt(np.mean(b ** 2)))
+
+
+def rel_rmse_scattered(img, ref, background):
+    """The same error relative to the light the media scatter, not to the whole image: sqrt(mean over pixels
+    and RGB of (L - L_ref)^2) / sqrt(mean of S_ref^2), S_ref = L_ref - L_bg T_ref (T_ref = 1 - alpha). The
+    background's share L_bg T is exact at every setting (the view transmittance is), so the numerator is the
+    same; this measure does not shrink as the sky gets brighter or covers more of the frame."""
+    a = np.asarray(img, np.float64)[..., :3]
+    b = np.asarray(ref, np.float64)
+    s = b[..., :3] - np.asarray(background, np.float64) * (1.0 - b[..., 3:4])
+    return float(np.sqrt(np.mean((a - b[..., :3]) ** 2)) / np.sqrt(np.mean(s ** 2)))
 
 
 def worst_pixel(img, ref):

@@ -153,7 +153,8 @@ def main(argv=None, quick=False):
     rows = [S.cached(p.stem)[2] for p in S.scene_paths() if S.cached(p.stem) is not None]  # the whole cache
     print("\nAccuracy suite: converged references (cm.render, quality reference) and their checks\n")
     head = (f"{'scene':22s} {'size':>6s} {'ref s':>6s} {'tight s':>7s} {'vs tighter':>10s} {'worst px':>9s} "
-            f"{'numpy px':>8s} {'vs numpy':>9s} {'worst px':>9s} {'alpha':>8s} {'numpy s':>7s} {'tight/np':>8s}  result")
+            f"{'numpy px':>8s} {'vs numpy':>9s} {'worst px':>9s} {'alpha':>8s} {'numpy s':>7s} {'tight/np':>8s}"
+            "  result")
     print(head)
     print("-" * len(head))
     passed = True
@@ -171,7 +172,8 @@ def main(argv=None, quick=False):
               f"{m['ref_vs_tighter']:10.2e} {m['ref_vs_tighter_worst_pixel']:9.2e} {num}  "
               f"{'PASS' if ok else 'FAIL'}")
     print(f"\nvs tighter: rel. RMSE of the reference against the tighter setting (whole image); vs numpy: against "
-          f"the independent numpy reference (rtol {args.rtol:g}) on a grid of the image's pixels (numpy px of them); worst px: "
+          f"the independent numpy reference (rtol {args.rtol:g}) on a grid of the image's pixels (numpy px of them); "
+          "worst px: "
           "max over pixels of max_c |diff| / max_c ref; alpha: max |alpha - (1 - T)| on those pixels; tight/np: the "
           "tighter image against the numpy reference on the same pixels.")
     print(f"{'PASS' if passed else 'FAIL'}: every reference within {CONVERGED:g} of the tighter image and within "
