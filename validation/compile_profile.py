@@ -24,6 +24,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+if __package__ in (None, ""):
+    sys.path.insert(0, str(ROOT))  # run as a file: this checkout's cloudmeta, not an installed one
 CUMULUS = ROOT / "scenes" / "cumulus.yaml"
 
 
