@@ -241,6 +241,9 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
     exposure = first.output.exposure if exposure is None else exposure
 
     def write(f, image):
+        if not np.all(np.isfinite(image)):  # as for a single render (cloudmeta.cli)
+            raise SceneError(path, None, f"frame {f}: the rendered image has values beyond the float32 range; "
+                                         f"lower the lights' irradiance or intensity (README: Limits)")
         # both files or neither: a frame is finished when all its files exist
         with atomic_outputs([exrs[f]] + ([pngs[f]] if f in pngs else [])) as tmps:
             encode_exr(image, tmps[0], colourspace=colourspace)
@@ -255,8 +258,8 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
         if client is None and workers is None and scheduler is None:
             for f in todo:
                 job = FrameJob(path, f, width, height, spp, render_overrides)
-                tiles = interruptible(lambda: [(w, render_tile(job, *w)) for w in windows])
-                write(f, _assemble(first, tiles))
+                pixels = interruptible(lambda: [(w, render_tile(job, *w)) for w in windows])
+                write(f, _assemble(first, pixels))
                 bar.update(1)
         else:
             with _dask_client(client, workers, scheduler) as (dask_client, threads):

@@ -245,7 +245,8 @@ def test_cli_frames_refuse_an_output_that_is_a_frames_balls_file(tmp_path, monke
     assert _snapshot(tmp_path / "puffs") == before
 
 
-def test_cli_frames_interrupted_exit_130_and_leave_no_temporary_files(tmp_path):
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_cli_frames_interrupted_exit_130_and_leave_no_temporary_files(tmp_path, sig):
     import signal
     import time
     write_scene(tmp_path, STATIC.replace("width: 24, height: 16", "width: 128, height: 128, spp: 16"))
@@ -258,7 +259,7 @@ def test_cli_frames_interrupted_exit_130_and_leave_no_temporary_files(tmp_path):
         while not (tmp_path / "f_0.png").exists():  # a frame finished: the sequence is under way
             assert proc.poll() is None and time.monotonic() < deadline
             time.sleep(0.05)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(getattr(signal, sig))
         out, err = proc.communicate(timeout=60)
     finally:
         proc.kill()
