@@ -21,13 +21,11 @@ def _render(args):
             or load_animation(args.scene) is not None:
         from .cluster import frames_command  # a sequence, tiles or a cluster (docs/animation.md)
         return frames_command(args)
-    from .io import atomic_outputs, check_distinct, check_output_path, encode_exr, encode_png
-    from .limits import MAX_EXPOSURE
+    from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_exr, encode_png
     from .scene import load_scene
 
-    if args.exposure is not None and not abs(args.exposure) <= MAX_EXPOSURE:  # nan, inf, 2000
-        raise CloudmetaError(f"--exposure: expected a finite number of stops within +-{MAX_EXPOSURE:g}, "
-                             f"got {args.exposure:g}")
+    if args.exposure is not None:
+        check_exposure(args.exposure, "--exposure")  # nan, inf, 2000: 2 ** exposure overflows
     overrides = {"quality": args.quality, "shadows": args.shadows, "shadow_map": args.shadow_map}
     scene = load_scene(args.scene, width=args.width, height=args.height, spp=args.spp, render=overrides)
     outputs = _outputs(args, scene)
@@ -67,39 +65,52 @@ def _outputs(args, scene):
 
 
 def _render_image(scene, progress):
-    """(image, seconds): the render, on a thread of its own so that the main thread stays free to take
-    Ctrl-C and SIGTERM at once (the kernels run without the GIL, on bands of rows)."""
+    """(image, seconds): the render, on a thread of its own (``interruptible``)."""
     import numpy as np
 
+    from .render import render
+    compile_notice()
+    start = time.perf_counter()
+    image = interruptible(render, scene, progress=progress)
+    took = time.perf_counter() - start
+    if not np.all(np.isfinite(image)):
+        raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
+                                           "the lights' irradiance or intensity (README: Limits)")
+    return image, took
+
+
+def compile_notice(note=""):
+    """Say so, before a render, when the kernels are not compiled yet (the first run on a machine)."""
     from .config import is_compiled
     from .kernels.radiance import render_pixels
-    from .render import render
     if not is_compiled(render_pixels):
-        print("cloudmeta: compiling the kernels for this machine (once: about 2 minutes on 2 cores, then cached)",
-              flush=True)
+        print(f"cloudmeta: compiling the kernels for this machine (once, about 100 s on 2 cores, then cached"
+              f"{'; ' + note if note else ''})", flush=True)
+
+
+def interruptible(work, *args, **kwargs):
+    """``work(*args, **kwargs)`` on a thread of its own, so that this (the main) thread stays free to take
+    Ctrl-C and SIGTERM at once: the kernels run without the GIL and cannot be stopped midway, so the
+    KeyboardInterrupt leaves the work running, goes up through this thread's ``atomic_outputs`` (which
+    remove their temporary files) and ``main`` then ends the process without waiting (``_RENDERS``)."""
     result = {}
 
-    def work():
+    def run():
         try:
-            start = time.perf_counter()
-            result["image"] = render(scene, progress=progress)
-            result["took"] = time.perf_counter() - start
+            result["value"] = work(*args, **kwargs)
         except BaseException as exc:  # handed to the main thread
             result["error"] = exc
+        finally:
+            _RENDERS.remove(worker)
 
-    worker = threading.Thread(target=work, name="cloudmeta-render", daemon=True)
+    worker = threading.Thread(target=run, name="cloudmeta-render", daemon=True)
     _RENDERS.append(worker)
     worker.start()
     while worker.is_alive():
         worker.join(0.2)
-    _RENDERS.remove(worker)
     if "error" in result:
         raise result["error"]
-    image = result["image"]
-    if not np.all(np.isfinite(image)):
-        raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
-                                           "the lights' irradiance or intensity (README: Limits)")
-    return image, result["took"]
+    return result["value"]
 
 
 #: render threads still running (an interrupt then ends the process at once instead of waiting for them)

@@ -22,12 +22,12 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .errors import CloudmetaError, InputError, SceneError
+from .errors import CloudmetaError, InputError, OutputError, SceneError
 
 #: a task that raises (not a dying worker: that is the scheduler's allowed-failures) is tried this many more times
 RETRIES = 2
@@ -80,10 +80,9 @@ class _Failure:
 def load_frame(job: FrameJob):
     """The validated Scene of ``job``'s frame, with its overrides."""
     from .scene import load_scene
-    scene = load_scene(job.scene, width=job.width, height=job.height, spp=job.spp, frame=job.frame)
-    if job.render:
-        scene = replace(scene, render=replace(scene.render, **dict(job.render)))
-    return scene
+    # the render overrides validated like the file's own (limits included)
+    return load_scene(job.scene, width=job.width, height=job.height, spp=job.spp, render=dict(job.render),
+                      frame=job.frame)
 
 
 def render_tile(job: FrameJob, rows=None, columns=None):
@@ -137,11 +136,26 @@ def frame_paths(pattern, frames, what):
     if len(set(paths.values())) < len(paths):
         raise InputError(f"{what} {pattern}: {len(paths)} frames would write the same file; put the frame "
                          f"number in the path, such as {_with_frame_field(pattern)}")
-    for path in set(paths.values()):
-        folder = os.path.dirname(path)
-        if not os.path.isdir(folder):
-            raise InputError(f"{what} {path}: the folder {folder} does not exist")
     return paths
+
+
+def _check_outputs(frames, exrs, pngs, labels, inputs_of):
+    """Every frame's outputs checked before any work (cloudmeta.io.check_output_path, check_distinct): the
+    folder, the extension, the name, not an input of the scene at that frame (``inputs_of(frame)``), and no
+    two outputs of the sequence naming one file (symbolic links resolved)."""
+    from .io import check_distinct, check_output_path
+    seen = {}
+    for f in frames:
+        outputs = [(labels[0], exrs[f], ".exr")] + ([(labels[1], pngs[f], ".png")] if f in pngs else [])
+        inputs = inputs_of(f)
+        for label, path, ext in outputs:
+            check_output_path(path, ext, label, inputs)
+        check_distinct([(label, path) for label, path, _ in outputs])
+        for label, path, _ in outputs:
+            other = seen.setdefault(os.path.realpath(path), (f, path))
+            if other[0] != f:
+                raise OutputError(f"{label} {path}: frames {other[0]} and {f} would write the same file "
+                                  f"({other[1]})")
 
 
 def _with_frame_field(path):
@@ -166,7 +180,7 @@ def _frames_bar(total, enabled):
 
 def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, width=None, height=None, spp=None,
                   render=None, tiles=1, overwrite=False, client=None, workers=None, scheduler=None,
-                  retries=RETRIES, progress=True) -> FramesReport:
+                  retries=RETRIES, progress=True, labels=("output", "png")) -> FramesReport:
     """Render ``frames`` of the scene file ``scene`` to one EXR each (and one PNG each with ``png``).
 
     ``frames``: an iterable of frame numbers; by default the scene's ``animation`` frames, or frame 0.
@@ -176,10 +190,17 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
     settings such as {"quality": "draft"}) override the scene's; ``exposure`` the PNG's. ``tiles``: K bands
     of rows or an (R, C) grid per frame. A frame whose files exist is skipped unless ``overwrite``.
     ``client``: a dask.distributed Client; or ``workers=N`` (a local cluster, started and closed here) or
-    ``scheduler`` (the address of a running one). Returns a FramesReport.
+    ``scheduler`` (the address of a running one). ``labels``: how errors name ``output`` and ``png`` (the
+    CLI's -o and --png). Every frame's outputs are checked before any work (cloudmeta.io.check_output_path;
+    the frames to render are loaded for that, so a bad frame fails before the first is rendered); each
+    frame's EXR and PNG are written together (cloudmeta.io.atomic_outputs: both or neither). Locally each
+    frame renders on a thread of its own (cloudmeta.cli.interruptible), so Ctrl-C stops at once and leaves
+    the finished frames; on a cluster the futures are cancelled and a cluster started here is closed (a
+    best effort: the tasks running on workers end when their frame does). Returns a FramesReport.
     """
     from .animation import load_animation
-    from .io import write_exr, write_png
+    from .cli import interruptible
+    from .io import atomic_outputs, check_exposure, encode_exr, encode_png
 
     path = os.path.abspath(os.fspath(scene))
     if frames is None:
@@ -191,27 +212,43 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
         raise InputError(f"frames: expected frame numbers (integers >= 0), got {frames!r}")
     frames = [int(f) for f in frames]
     render_overrides = tuple(sorted((render or {}).items()))
+    if exposure is not None:
+        check_exposure(exposure)
     first = load_frame(FrameJob(path, frames[0], width, height, spp, render_overrides))  # fail before any work
+    labels = list(labels)
     if output is None:
+        labels[0] = f"{path}: output.path" if first.output.path else "the default output"
         output = first.output.path or str(Path(path).with_suffix(".exr").name)
         if len(frames) > 1 and first.output.path is None:
             output = _with_frame_field(output)
+    if png is None and first.output.png:
+        labels[1] = f"{path}: output.png"
     png = png if png is not None else first.output.png
-    exrs = frame_paths(output, frames, "output")
-    pngs = frame_paths(png, frames, "png") if png else {}
+    exrs = frame_paths(output, frames, labels[0])
+    pngs = frame_paths(png, frames, labels[1]) if png else {}
+    # first against the inputs every frame shares (an output that is the scene file must not count as a
+    # finished frame), then each frame to render against its own (a balls_file per frame)
+    _check_outputs(dict.fromkeys(frames), exrs, pngs, labels, lambda f: first.inputs)
     report = FramesReport(outputs={f: (exrs[f], pngs.get(f)) for f in frames})
     todo = []
     for f in dict.fromkeys(frames):
         finished = all(os.path.exists(p) for p in report.outputs[f] if p is not None)
         (report.skipped if finished and not overwrite else todo).append(f)
+    _check_outputs(todo, exrs, pngs, labels, lambda f: first.inputs if f == frames[0] else load_frame(
+        FrameJob(path, f, width, height, spp, render_overrides)).inputs)
     windows = tile_windows(first.image.height, first.image.width, tiles)
     colourspace = first.render.colourspace
     exposure = first.output.exposure if exposure is None else exposure
 
     def write(f, image):
-        write_exr(image, exrs[f], colourspace=colourspace)
-        if f in pngs:
-            write_png(image, pngs[f], exposure=exposure, colourspace=colourspace)
+        if not np.all(np.isfinite(image)):  # as for a single render (cloudmeta.cli)
+            raise SceneError(path, None, f"frame {f}: the rendered image has values beyond the float32 range; "
+                                         f"lower the lights' irradiance or intensity (README: Limits)")
+        # both files or neither: a frame is finished when all its files exist
+        with atomic_outputs([exrs[f]] + ([pngs[f]] if f in pngs else [])) as tmps:
+            encode_exr(image, tmps[0], colourspace=colourspace)
+            if f in pngs:
+                encode_png(image, tmps[1], exposure=exposure, colourspace=colourspace)
         report.rendered.append(f)
 
     if not todo:
@@ -221,7 +258,8 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
         if client is None and workers is None and scheduler is None:
             for f in todo:
                 job = FrameJob(path, f, width, height, spp, render_overrides)
-                write(f, _assemble(first, [(w, render_tile(job, *w)) for w in windows]))
+                pixels = interruptible(lambda: [(w, render_tile(job, *w)) for w in windows])
+                write(f, _assemble(first, pixels))
                 bar.update(1)
         else:
             with _dask_client(client, workers, scheduler) as (dask_client, threads):
@@ -310,6 +348,10 @@ def frames_command(args):
     import time
 
     from .animation import parse_frames
+    from .cli import compile_notice
+    from .io import check_exposure
+    if args.exposure is not None:
+        check_exposure(args.exposure, "--exposure")
     frames = parse_frames(args.frames) if args.frames is not None else None
     tiles = parse_tiles(args.tiles) if args.tiles is not None else 1
     render = {k: v for k, v in (("quality", args.quality), ("shadows", args.shadows),
@@ -321,15 +363,12 @@ def frames_command(args):
     n_tiles = tiles if isinstance(tiles, int) else tiles[0] * tiles[1]
     print(f"cloudmeta: rendering {args.scene}: {span} {where}" + (f", {n_tiles} tiles a frame" if n_tiles > 1 else ""),
           flush=True)
-    from .config import is_compiled
-    from .kernels.radiance import render_pixels
-    if not is_compiled(render_pixels):
-        print("cloudmeta: compiling the kernels for this machine (once: about 2 minutes on 2 cores, then cached; "
-              "workers on this machine share the cache)", flush=True)
+    compile_notice("workers on this machine share the cache")
     start = time.perf_counter()
     report = render_frames(args.scene, frames, args.output, args.png, exposure=args.exposure, width=args.width,
                            height=args.height, spp=args.spp, render=render, tiles=tiles, overwrite=args.overwrite,
-                           workers=args.workers, scheduler=args.scheduler, progress=not args.quiet)
+                           workers=args.workers, scheduler=args.scheduler, progress=not args.quiet,
+                           labels=("-o", "--png"))
     took = time.perf_counter() - start
     if report.skipped:
         print(f"cloudmeta: skipped {len(report.skipped)} finished frames (their files exist; --overwrite renders "

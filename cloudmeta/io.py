@@ -166,11 +166,19 @@ def encode_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
     """``write_png`` straight to ``path``, without a temporary file (for callers that hold one already)."""
     from PIL import Image
     arr = check_image(image)
-    if not (isinstance(exposure, (int, float, np.integer, np.floating)) and not isinstance(exposure, (bool, np.bool_))
-            and abs(exposure) <= MAX_EXPOSURE):
-        raise InputError(f"exposure: expected a finite number of stops within +-{MAX_EXPOSURE:g}, got {exposure!r}")
+    check_exposure(exposure)
     pixels = Image.fromarray(encode_srgb(arr[:, :, :3], exposure, colourspace))
     pixels.save(os.fspath(path), format="PNG")
+
+
+def check_exposure(exposure, label="exposure"):
+    """Refuse a PNG exposure (stops) that is not a finite number within +-MAX_EXPOSURE (``2 ** 2000``
+    overflows): InputError naming ``label`` (``--exposure``). Returns it as a float."""
+    if not (isinstance(exposure, (int, float, np.integer, np.floating)) and not isinstance(exposure, (bool, np.bool_))
+            and abs(exposure) <= MAX_EXPOSURE):  # nan and inf fail the comparison
+        got = f"{exposure:g}" if isinstance(exposure, (float, np.floating)) else repr(exposure)
+        raise InputError(f"{label}: expected a finite number of stops within +-{MAX_EXPOSURE:g}, got {got}")
+    return float(exposure)
 
 
 def check_output_path(path, ext, label, inputs=()):

@@ -124,7 +124,7 @@ def test_balls_file_per_frame(tmp_path):
 @pytest.mark.parametrize("change, message", [
     # a value that is valid at the keys but not in between is refused at the frame that has it
     (("radius: 1.2", "radius: {keys: {0: 1.2, 2: 0.0}}"),
-     r"scene.yaml: frame 2: media\[0\].balls\[0\].radius: expected a finite number > 0.*got 0.0"),
+     r"scene.yaml: frame 2: media\[0\].balls\[0\].radius: expected a finite number > 0, from 1e-100 to 1e\+100, got 0.0"),
     (("interpolate: smooth}, look_at", "interpolate: cubic}, look_at"),
      r"scene.yaml: frame 1: camera.position.interpolate: expected one of linear, smooth, got the text 'cubic'"),
     (("{keys: {0: 3, 2: 5}}", "{keys: {0: 3, 2: [5, 1]}}"),
@@ -205,3 +205,70 @@ def test_cli_several_frames_need_a_frame_field_in_the_output(tmp_path):
     err = proc.stderr.strip().splitlines()
     assert len(err) == 1 and "one.exr: 3 frames would write the same file" in err[0] and "{frame:04d}" in err[0]
     assert not (tmp_path / "one.exr").exists()
+
+
+# ------------------------------------------------------------- issue #15's rules on the frames path
+
+def _snapshot(folder):
+    return {p.name: (p.stat().st_mtime_ns, p.read_bytes() if p.is_file() else None)
+            for p in sorted(Path(folder).iterdir())}
+
+
+@pytest.mark.parametrize("extra, names, fragment", [
+    (["-o", "missing/f_{frame}.exr"], "missing", "does not exist"),
+    (["-o", "scene.yaml", "--frames", "0"], "scene.yaml", "input of the scene"),
+    (["-o", "f_{frame}.exr", "--png", "f_{frame}.exr"], "--png", "ending in .png"),
+    (["-o", "f_{frame}.exr", "--png", "f_{frame}.png", "--exposure", "2000"], "--exposure", "within +-64"),
+], ids=["missing folder", "scene file", "exr is png", "exposure"])
+def test_cli_frames_refuse_bad_outputs_before_any_work(tmp_path, monkeypatch, capsys, extra, names, fragment):
+    write_scene(tmp_path, ANIMATED)
+    monkeypatch.chdir(tmp_path)
+    before = _snapshot(tmp_path)
+    assert main(["render", "scene.yaml", "-q", *extra]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cloudmeta: error: "), lines
+    assert names in lines[0] and fragment in lines[0] and "Traceback" not in lines[0]
+    assert _snapshot(tmp_path) == before
+
+
+def test_cli_frames_refuse_an_output_that_is_a_frames_balls_file(tmp_path, monkeypatch, capsys):
+    (tmp_path / "puffs").mkdir()
+    for f in range(2):
+        (tmp_path / "puffs" / f"c_{f}.exr").write_text(f"x,y,z,radius,weight\n{f},0,0,1.0,1.0\n")
+    write_scene(tmp_path, STATIC.replace("media: [{balls: [{center: [0, 0, 0], radius: 1.5}]}]",
+                                         "media: [{balls_file: 'puffs/c_{frame}.exr'}]"))
+    monkeypatch.chdir(tmp_path)
+    before = _snapshot(tmp_path / "puffs")
+    assert main(["render", "scene.yaml", "--frames", "0:2", "-o", "puffs/c_{frame}.exr", "--overwrite", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "input of the scene" in err and "c_0.exr" in err
+    assert _snapshot(tmp_path / "puffs") == before
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_cli_frames_interrupted_exit_130_and_leave_no_temporary_files(tmp_path, sig):
+    import signal
+    import time
+    write_scene(tmp_path, STATIC.replace("width: 24, height: 16", "width: 128, height: 128, spp: 16"))
+    proc = subprocess.Popen([sys.executable, "-m", "cloudmeta.cli", "render", "scene.yaml", "--frames", "0:50",
+                             "-o", "f_{frame}.exr", "--png", "f_{frame}.png", "-q"], cwd=tmp_path,
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 300
+        while not (tmp_path / "f_0.png").exists():  # a frame finished: the sequence is under way
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        proc.send_signal(getattr(signal, sig))
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert err == "cloudmeta: interrupted\n"
+    names = os.listdir(tmp_path)
+    assert not [n for n in names if ".tmp-" in n]
+    assert "f_49.exr" not in names
+    for n in names:  # every frame left has both of its files, complete
+        if n.endswith(".exr"):
+            assert n[:-4] + ".png" in names
+            cm.read_exr(tmp_path / n)
