@@ -19,7 +19,6 @@ from .kernels.trace import field_at, first_hits, gradient_at, trace_rays
 #: default root tolerance, relative to the blob's bounding-box diagonal (MODEL.md §3)
 ROOT_TOLERANCE = 1e-9
 DENSITY_MODES = {"field": DENSITY_FIELD, "excess": DENSITY_EXCESS, "uniform": DENSITY_UNIFORM}
-TRACEABLE_KERNELS = ("wyvill6", "murakami4", "nishimura", "blinn")
 
 
 def _points(name, value, bound=LENGTH_RANGE[1]):
@@ -92,17 +91,10 @@ def n_chunks(n_items):
     return max(1, min(n_items, 8 * numba.get_num_threads()))
 
 
-def check_traceable(blob):
-    blob = check_blob(blob)
-    if blob.kernel not in TRACEABLE_KERNELS:
-        raise InputError(f"kernel: ray tracing supports {', '.join(TRACEABLE_KERNELS)} so far, got {blob.kernel!r}")
-    return blob
-
-
 def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1.0, cap=16, lists=True):
     """tau (N,), and with ``lists`` the per-ray roots and segments (Python lists of arrays: costly for
     millions of rays, so optical_depth skips them)."""
-    blob = check_traceable(blob)
+    blob = check_blob(blob)
     if not (isinstance(density, str) and density in DENSITY_MODES):
         raise InputError(f"density: expected one of {', '.join(DENSITY_MODES)}, got {density!r}"[:200])
     scale = real_number("scale", scale, lambda v: 0 <= v <= 1e100, "a finite number >= 0 (and <= 1e100)")
@@ -156,7 +148,7 @@ def field(blob, points):
     blob = check_blob(blob)
     p = np.array(_points("points", points))
     out = np.empty(len(p))
-    field_at(p, blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, out)
+    field_at(p, blob_record(blob), out)
     return out
 
 
@@ -164,7 +156,7 @@ def first_hit(blob, origins, directions, t_max=np.inf, tolerance=ROOT_TOLERANCE)
     """(N,) t where each ray first meets the blob drawn as an opaque surface (MODEL.md §6): the first
     root where F rises through T, 0 where the origin is inside (F >= T), inf where the ray misses it
     within [0, t_max]. Only the first root is searched for, so this is cheaper than ``roots``."""
-    blob = check_traceable(blob)
+    blob = check_blob(blob)
     o, d, tm = prepare_rays(origins, directions, t_max)
     out = np.empty(len(o))
     first_hits(Rays(o, d, tm), blob_record(blob), blob_bvh(blob), root_tolerance(blob, tolerance),
@@ -178,7 +170,7 @@ def gradient(blob, points):
     blob = check_blob(blob)
     p = np.array(_points("points", points))
     out = np.empty((len(p), 3))
-    gradient_at(p, blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, out)
+    gradient_at(p, blob_record(blob), out)
     return out
 
 

@@ -81,8 +81,11 @@ def _field_on_grid(blob, origin, spacing, dims):
     cell_origin, cell_size, cell_dims, pad = _cull_cells(blob)
     cell_start, cell_items = bin_balls(blob.bounds, pad, cell_origin, cell_size, cell_dims)
     out = np.empty(int(np.prod(dims)))
-    sample_field(origin, spacing, dims, blob.centers, blob.frames, blob.weights, blob.kernel_id,
-                 blob.blobbiness, cell_origin, cell_size, cell_dims, cell_start, cell_items, out)
+    from .engine import blob_record
+    from .kernels.records import CellGrid
+
+    sample_field(origin, spacing, dims, blob_record(blob),
+                 CellGrid(cell_origin, cell_size, cell_dims, cell_start, cell_items), out)
     return out
 
 

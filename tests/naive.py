@@ -217,3 +217,30 @@ def first_hit(field, threshold, origins, directions, t0, t1, step):
         hi[bracket] = np.where(inside, mid, hi[bracket])
         lo[bracket] = np.where(inside, lo[bracket], mid)
     return hi
+
+
+def phase(kind, cos_theta, g1=0.0, g2=0.0, w=1.0):
+    """MODEL.md §4's phase functions, by name, straight from the formulas."""
+    def hg(g):
+        return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * cos_theta) ** 1.5)
+    if kind == "isotropic":
+        return 1 / (4 * math.pi) + 0 * cos_theta
+    if kind == "hg":
+        return hg(g1)
+    if kind == "double_hg":
+        return w * hg(g1) + (1 - w) * hg(g2)
+    if kind == "rayleigh":
+        return 3 / (16 * math.pi) * (1 + cos_theta * cos_theta)
+    raise ValueError(kind)
+
+
+def lagrange(x, k, y):
+    """The k-th Lagrange basis polynomial of the nodes x at y."""
+    return np.prod([(y - x[j]) / (x[k] - x[j]) for j in range(len(x)) if j != k], axis=0)
+
+
+def exp_weights(h, x, n_fine=200):
+    """int_0^h e^-t L_k(t / h) dt for every k, by a fine Gauss-Legendre rule on [0, h]."""
+    y, w = np.polynomial.legendre.leggauss(n_fine)
+    t = 0.5 * h * (y + 1.0)
+    return np.array([0.5 * h * np.sum(w * np.exp(-t) * lagrange(x, k, t / h)) for k in range(len(x))])

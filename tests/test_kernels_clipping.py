@@ -19,7 +19,7 @@ def bernstein_from_roots(roots, scale=1.0):
 def clip(g, tol=1e-12, eps=0.0):
     st = (np.empty(kc.STACK_DEPTH), np.empty(kc.STACK_DEPTH), np.empty((kc.STACK_DEPTH, 7)))
     roots, rising = np.empty(16), np.empty(16, np.bool_)
-    n = kc.clip_roots(np.asarray(g, float), tol, eps, *st, np.empty((2, 7)), roots, rising)
+    n = kc.clip_roots(np.asarray(g, float), tol, eps, *st, roots, rising)
     return roots[:n].copy(), rising[:n].copy()
 
 

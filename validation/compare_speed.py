@@ -8,6 +8,7 @@ For each checkout (a folder holding the cloudmeta package), alternating between 
 Prints the median and the spread (min - max) of each figure per checkout.
 
     python -m validation.compare_speed /path/to/old /path/to/new [--rounds 3] [--repeat 2]
+    python -m validation.compare_speed OLD NEW --caches OLD_CACHE NEW_CACHE   (warm only, filled caches)
 """
 from __future__ import annotations
 
@@ -50,18 +51,25 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--skip-cold", action="store_true")
+    ap.add_argument("--caches", nargs="+", default=None,
+                    help="an existing cache folder per checkout, for the warm figure only (no cold compile)")
     args = ap.parse_args(argv)
+    caches = dict(zip(args.roots, args.caches)) if args.caches else {}
     cold = {r: [] for r in args.roots}
     warm = {r: [] for r in args.roots}
     for k in range(args.rounds):
         for root in args.roots:
             scene = str(Path(root) / "scenes" / "cumulus.yaml")
-            with tempfile.TemporaryDirectory() as cache:
-                if not args.skip_cold:
-                    wall, _ = run(root, _COLD.format(scene=scene), cache)
-                    cold[root].append(wall)
-                _, out = run(root, _WARM.format(scene=scene, repeat=args.repeat), cache)
+            if root in caches:
+                _, out = run(root, _WARM.format(scene=scene, repeat=args.repeat), caches[root])
                 warm[root] += [float(x) for x in out.split()]
+            else:
+                with tempfile.TemporaryDirectory() as cache:
+                    if not args.skip_cold:
+                        wall, _ = run(root, _COLD.format(scene=scene), cache)
+                        cold[root].append(wall)
+                    _, out = run(root, _WARM.format(scene=scene, repeat=args.repeat), cache)
+                    warm[root] += [float(x) for x in out.split()]
             print(f"round {k}: {root}: cold {cold[root][-1:]} warm {warm[root][-args.repeat:]}", flush=True)
     for root in args.roots:
         for name, v in (("cold compile + 64x64 render (s)", cold[root]), ("warm 512x512 render (s)", warm[root])):

@@ -9,10 +9,10 @@ cm.optical_depth is compared with the reference of validation/optical_depth_vs_q
 the engine's roots and independently found roots), whose functions are imported here. On a big blob the
 reference only sees the balls the ray meets (the others are 0 on the ray), which keeps quad affordable.
 
-Kernels the engine cannot trace yet (cm.optical_depth raises cloudmeta.InputError: nishimura and blinn
-today) are listed as "not traceable yet" rather than left out. Should one become traceable, it is checked
-like the others, against quad with roots found on a fine sampling refined by brentq (these kernels are not
-polynomials on a chord).
+Every kernel is traceable: nishimura and blinn are checked like the others, against quad with roots found
+on a fine sampling refined by brentq (these kernels are not polynomials on a chord). A kernel the engine
+could not trace (cm.optical_depth raising cloudmeta.InputError) would be listed as "not traceable yet"
+rather than left out.
 
     python -m validation.optical_depth [--rays-per-blob 16] [--seed 2] [--quick]
 

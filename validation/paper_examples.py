@@ -90,10 +90,9 @@ def engine_subdivide(c, s0, s1):
 
 def engine_clip_roots(g, tol_s=1e-12, eps_g=0.0):
     st_lo, st_hi = np.empty(STACK_DEPTH), np.empty(STACK_DEPTH)
-    st_c, work = np.empty((STACK_DEPTH, 7)), np.empty((2, 7))
+    st_c = np.empty((STACK_DEPTH, 7))
     roots, rising = np.empty(16), np.empty(16, np.bool_)
-    n = clip_roots(np.ascontiguousarray(g, dtype=np.float64), tol_s, eps_g, st_lo, st_hi, st_c, work, roots,
-                   rising)
+    n = clip_roots(np.ascontiguousarray(g, dtype=np.float64), tol_s, eps_g, st_lo, st_hi, st_c, roots, rising)
     return roots[:n].copy(), rising[:n].copy()
 
 

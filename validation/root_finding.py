@@ -118,11 +118,11 @@ def companion_scratch():
 # --- timing loops over a group of intervals (not cached: they inline the engine's clip_roots) ---------------------
 
 @njit(cache=False, nogil=True, error_model="numpy")
-def _loop_clip(G, tol, reps, st_lo, st_hi, st_c, work, roots, rising):
+def _loop_clip(G, tol, reps, st_lo, st_hi, st_c, roots, rising):
     acc = 0.0
     for _ in range(reps):
         for i in range(G.shape[0]):
-            acc += clip_roots(G[i], tol, 0.0, st_lo, st_hi, st_c, work, roots, rising)
+            acc += clip_roots(G[i], tol, 0.0, st_lo, st_hi, st_c, roots, rising)
     return acc
 
 

@@ -46,10 +46,10 @@ REQUIRED = {-0.2: 30.0, 0.5: 10.0, 1.2: 30.0}
 # --- timing loops (not cached: they inline the engine's clip_roots, which may change under them) ----------
 
 @njit(cache=False, nogil=True, error_model="numpy")
-def _loop_clipping(g, tol, reps, st_lo, st_hi, st_c, work, roots, rising):
+def _loop_clipping(g, tol, reps, st_lo, st_hi, st_c, roots, rising):
     acc = 0.0
     for _ in range(reps):
-        n = clip_roots(g, tol, 0.0, st_lo, st_hi, st_c, work, roots, rising)
+        n = clip_roots(g, tol, 0.0, st_lo, st_hi, st_c, roots, rising)
         acc += n
         if n > 0:
             acc += roots[0]
@@ -84,8 +84,8 @@ def _loop_parts(g, which, reps, out):
 
 
 def clipping_scratch():
-    return (np.empty(STACK_DEPTH), np.empty(STACK_DEPTH), np.empty((STACK_DEPTH, 7)), np.empty((2, 7)),
-            np.empty(16), np.empty(16, np.bool_))
+    return (np.empty(STACK_DEPTH), np.empty(STACK_DEPTH), np.empty((STACK_DEPTH, 7)), np.empty(16),
+            np.empty(16, np.bool_))
 
 
 def run_clipping(g, tol):

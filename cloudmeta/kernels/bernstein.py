@@ -59,27 +59,6 @@ def subdivide(c, s0, s1, out):
     out[6] = c6
 
 
-@njit(**NJIT_INLINE)
-def split(c, t, left, right):
-    """One de Casteljau split at t: left gets the curve on [0, t], right the curve on [t, 1]."""
-    (l0, l1, l2, l3, l4, l5, l6), (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(
-        c[0], c[1], c[2], c[3], c[4], c[5], c[6], t)
-    left[0] = l0
-    left[1] = l1
-    left[2] = l2
-    left[3] = l3
-    left[4] = l4
-    left[5] = l5
-    left[6] = l6
-    right[0] = r0
-    right[1] = r1
-    right[2] = r2
-    right[3] = r3
-    right[4] = r4
-    right[5] = r5
-    right[6] = r6
-
-
 @njit(**NJIT)
 def bernstein_mean(c):
     """Integral over [0, 1] of a Bernstein polynomial: the mean of its control values."""

@@ -129,15 +129,12 @@ def ray_box(ox, oy, oz, ix, iy, iz, node_box, k, tmin, tmax):
     return t0 <= t1
 
 
-@njit(**NJIT)
-def bvh_candidates(o, d, tmin, tmax, bvh, root, stack, cand):
-    """Ball indices whose boxes the ray meets within [tmin, tmax], into cand; returns their number.
-    bvh: a records.BVH (its node arrays; ``root`` the node to start from)."""
-    node_box, node_a, node_b, node_n, items = bvh.node_box, bvh.node_a, bvh.node_b, bvh.node_n, bvh.items
+@njit(**NJIT_INLINE)
+def _walk(o, ix, iy, iz, tmin, tmax, bvh, root, stack, cand):
+    """Ball indices of the leaves whose boxes the ray (origin o, inverse direction i) meets within [tmin,
+    tmax], into cand, depth first (right child first); returns their number."""
     ox, oy, oz = o[0], o[1], o[2]
-    ix = 1.0 / d[0] if d[0] != 0.0 else np.inf
-    iy = 1.0 / d[1] if d[1] != 0.0 else np.inf
-    iz = 1.0 / d[2] if d[2] != 0.0 else np.inf
+    node_box, node_a, node_b, node_n, items = bvh.node_box, bvh.node_a, bvh.node_b, bvh.node_n, bvh.items
     n = 0
     if not ray_box(ox, oy, oz, ix, iy, iz, node_box, root, tmin, tmax):
         return 0
@@ -163,29 +160,18 @@ def bvh_candidates(o, d, tmin, tmax, bvh, root, stack, cand):
 
 
 @njit(**NJIT)
-def _box_holds(box, x):
-    return (box[0] <= x[0] <= box[3]) and (box[1] <= x[1] <= box[4]) and (box[2] <= x[2] <= box[5])
+def bvh_candidates(o, d, tmin, tmax, bvh, root, stack, cand):
+    """Ball indices whose boxes the ray meets within [tmin, tmax], into cand; returns their number.
+    bvh: a records.BVH (its node arrays; ``root`` the node to start from)."""
+    ix = 1.0 / d[0] if d[0] != 0.0 else np.inf
+    iy = 1.0 / d[1] if d[1] != 0.0 else np.inf
+    iz = 1.0 / d[2] if d[2] != 0.0 else np.inf
+    return _walk(o, ix, iy, iz, tmin, tmax, bvh, root, stack, cand)
 
 
 @njit(**NJIT)
 def bvh_point_candidates(x, bvh, root, stack, cand):
-    """Ball indices whose boxes hold the point x, into cand; returns their number."""
-    node_box, node_a, node_b, node_n, items = bvh.node_box, bvh.node_a, bvh.node_b, bvh.node_n, bvh.items
-    if not _box_holds(node_box[root], x):
-        return 0
-    n = 0
-    stack[0] = root
-    top = 1
-    while top > 0:
-        top -= 1
-        node = stack[top]
-        if node_n[node] > 0:
-            for k in range(node_a[node], node_a[node] + node_n[node]):
-                cand[n] = items[k]
-                n += 1
-            continue
-        for child in (node_a[node], node_b[node]):
-            if _box_holds(node_box[child], x):
-                stack[top] = child
-                top += 1
-    return n
+    """Ball indices whose boxes hold the point x (bounds included), into cand; returns their number.
+    The walk of a ray from x along (1, 1, 1) over t in [0, 0]: the slab test then reduces to
+    lo - x <= 0 <= hi - x on every axis, exact in floating point."""
+    return _walk(x, 1.0, 1.0, 1.0, 0.0, 0.0, bvh, root, stack, cand)

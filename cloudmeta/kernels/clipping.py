@@ -223,14 +223,14 @@ def _polish7(c0, c1, c2, c3, c4, c5, c6, smin, smax):
 
 
 @njit(**NJIT_INLINE)
-def _is_noise7(g0, g1, g2, g3, g4, g5, g6, r0, r1, eps_g, lo, g_lo):
-    """True when g stays within eps_g of zero between r0 and r1 (so the two roots are one touch). lo lies
-    in [r0, r1] when r0 <= lo, and g_lo = g(lo): a quick no."""
+def _is_noise7(g, r0, r1, eps_g, lo, g_lo):
+    """True when g (7 control values) stays within eps_g of zero between r0 and r1 (so the two roots are
+    one touch). lo lies in [r0, r1] when r0 <= lo, and g_lo = g(lo): a quick no."""
     if r1 <= r0:
         return True
     if r0 <= lo and abs(g_lo) > eps_g:
         return False
-    c0, c1, c2, c3, c4, c5, c6 = _subdivide7(g0, g1, g2, g3, g4, g5, g6, r0, r1)
+    c0, c1, c2, c3, c4, c5, c6 = _subdivide7(g[0], g[1], g[2], g[3], g[4], g[5], g[6], r0, r1)
     m = max(max(max(abs(c0), abs(c1)), max(abs(c2), abs(c3))), max(max(abs(c4), abs(c5)), abs(c6)))
     return m <= eps_g
 
@@ -249,10 +249,11 @@ _FINISHED = 3  # lane B's interval is done; its root, if any, waits until everyt
 
 
 @njit(**NJIT_INLINE)
-def _plan(c0, c1, c2, c3, c4, c5, c6, w, tol_s, steps, can_split):
-    """What one clipping step does to an interval of width w with control values c0..c6: (kind, smin,
-    smax), kind one of _NONE, _ROOT, _SPLIT, _CLIP; [smin, smax] is the hull's crossing, widened by FAT
-    ((0, 1) for _NONE)."""
+def _plan(c, w, tol_s, steps, can_split):
+    """What one clipping step does to an interval of width w with control values c = (c0, .., c6), a tuple
+    of scalars: (kind, smin, smax), kind one of _NONE, _ROOT, _SPLIT, _CLIP; [smin, smax] is the hull's
+    crossing, widened by FAT ((0, 1) for _NONE)."""
+    c0, c1, c2, c3, c4, c5, c6 = c
     if _no_crossing7(c0, c1, c2, c3, c4, c5, c6):
         return _NONE, 0.0, 1.0
     smin, smax = _hull7(c0, c1, c2, c3, c4, c5, c6)
@@ -273,14 +274,13 @@ def _plan(c0, c1, c2, c3, c4, c5, c6, w, tol_s, steps, can_split):
 
 
 @njit(**NJIT)
-def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, work, roots, rising):
+def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, roots, rising):
     """Roots of g (Bernstein, degree 6, on [0, 1]) where the class g >= 0 changes; returns their number.
 
     tol_s: width in s below which an interval is a root; eps_g: |g| below this is numerical noise.
     Writes roots[k] (sorted) and rising[k] (True where g goes from < 0 to >= 0). Two consecutive roots
     with |g| <= eps_g everywhere between them are one noisy touch (a double root) and both are dropped.
-    Scratch: st_lo, st_hi (STACK_DEPTH,), st_c (STACK_DEPTH, 7); work (2, 7) is no longer used (kept so
-    that callers need not change).
+    Scratch: st_lo, st_hi (STACK_DEPTH,), st_c (STACK_DEPTH, 7).
 
     The intervals and their steps are those of depth-first clipping (a converged interval is a root when
     the class differs at its ends; a stalled one is split, its upper half pushed on the stack), but two
@@ -316,7 +316,7 @@ def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, work, roots, rising):
         # one step of lane A and, when it is clipping, one of lane B: first both hulls, then both subdivisions
         a_w = a_hi - a_lo
         steps += 1
-        ka, sa0, sa1 = _plan(a0, a1, a2, a3, a4, a5, a6, a_w, tol_s, steps, top < STACK_DEPTH - 2)
+        ka, sa0, sa1 = _plan((a0, a1, a2, a3, a4, a5, a6), a_w, tol_s, steps, top < STACK_DEPTH - 2)
         b_run = b_mode == _RUN
         kb = _NONE
         sb0 = 0.0
@@ -324,7 +324,7 @@ def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, work, roots, rising):
         b_w = b_hi - b_lo
         if b_run:
             steps += 1
-            kb, sb0, sb1 = _plan(b0, b1, b2, b3, b4, b5, b6, b_w, tol_s, steps, True)
+            kb, sb0, sb1 = _plan((b0, b1, b2, b3, b4, b5, b6), b_w, tol_s, steps, True)
         if ka == _CLIP:
             a0, a1, a2, a3, a4, a5, a6 = _subdivide7(a0, a1, a2, a3, a4, a5, a6, sa0, sa1)
             a_lo, a_hi = a_lo + sa0 * a_w, a_lo + sa1 * a_w
@@ -368,7 +368,7 @@ def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, work, roots, rising):
             if (a0 >= 0.0) != up:
                 r = a_lo + a_w * _polish7(a0, a1, a2, a3, a4, a5, a6, sa0, sa1)
                 if n_roots > 0 and rising[n_roots - 1] != up and _is_noise7(
-                        g[0], g[1], g[2], g[3], g[4], g[5], g[6], roots[n_roots - 1], r, eps_g, a_lo, a0):
+                        g, roots[n_roots - 1], r, eps_g, a_lo, a0):
                     n_roots -= 1  # two crossings within the noise of g: one touch, the pair cancels
                 elif n_roots < roots.shape[0]:
                     roots[n_roots] = r
@@ -390,7 +390,7 @@ def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, work, roots, rising):
                 # everything below lane B's interval is done: its root comes next
                 if b_root:
                     if n_roots > 0 and rising[n_roots - 1] != b_up and _is_noise7(
-                            g[0], g[1], g[2], g[3], g[4], g[5], g[6], roots[n_roots - 1], b_r, eps_g, b_lo, b0):
+                            g, roots[n_roots - 1], b_r, eps_g, b_lo, b0):
                         n_roots -= 1
                     elif n_roots < roots.shape[0]:
                         roots[n_roots] = b_r

@@ -17,7 +17,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import NJIT, NJIT_PARALLEL
-from .metaball import falloff, unit_distance2
+from .metaball import field_sum
+from .records import BlobRecord
 
 
 @njit(**NJIT)
@@ -77,14 +78,18 @@ def bin_balls(bounds, pad, cell_origin, cell_size, cell_dims):
 
 
 @njit(**NJIT_PARALLEL)
-def sample_field(origin, spacing, dims, centers, frames, weights, kernel, blobbiness,
-                 cell_origin, cell_size, cell_dims, cell_start, cell_items, out):
+def sample_field(origin, spacing, dims, blob, cells, out):
     """F at every point origin + (i, j, k) * spacing of a dims[0] x dims[1] x dims[2] grid, written to the
-    flat ``out`` with x fastest (index i + nx (j + ny k), VTK's order). One prange iteration per grid row
+    flat ``out`` with x fastest (index i + nx (j + ny k), VTK's order); ``blob`` a records.BlobRecord,
+    ``cells`` its balls binned by bin_balls (a records.CellGrid). One prange iteration per grid row
     (fixed j, k): each writes only its own slice of ``out``, so the result does not depend on threads."""
+    # records are unpacked before the prange loop and rebuilt in it (see kernels.trace.trace_rays)
+    centers, frames, weights, kernel, blobbiness, threshold = blob
+    cell_origin, cell_size, cell_dims, cell_start, cell_items = cells
     nx, ny, nz = dims[0], dims[1], dims[2]
     cnx, cny = cell_dims[0], cell_dims[1]
     for row in prange(ny * nz):
+        blob_r = BlobRecord(centers, frames, weights, kernel, blobbiness, threshold)
         j = row % ny
         k = row // ny
         x = np.empty(3)
@@ -95,10 +100,4 @@ def sample_field(origin, spacing, dims, centers, frames, weights, kernel, blobbi
         for i in range(nx):
             x[0] = origin[0] + i * spacing[0]
             c = cell_index(x[0], cell_origin[0], cell_size, cell_dims[0]) + cnx * (cj + cny * ck)
-            acc = 0.0
-            for m in range(cell_start[c], cell_start[c + 1]):
-                b = cell_items[m]
-                u = unit_distance2(x, centers[b], frames[b])
-                if u < 1.0:
-                    acc += weights[b] * falloff(kernel, u, blobbiness)
-            out[i + nx * row] = acc
+            out[i + nx * row] = field_sum(x, blob_r, cell_items, cell_start[c], cell_start[c + 1])

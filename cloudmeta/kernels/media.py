@@ -9,7 +9,7 @@ from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF
 from .bvh import bvh_candidates
 from .records import BlobRecord, RayPieces
-from .sweep import DENSITY_EXCESS, DENSITY_UNIFORM, pieces_optical_depth, trace_blob
+from .sweep import pieces_optical_depth, rho_value, trace_blob
 
 
 @njit(**NJIT)
@@ -58,12 +58,7 @@ def grow_ray_pieces(rp, n, need, n_med):
 def piece_sigma_t(field_c, mode, threshold, scale, out):
     """out = sigma_t's control values on a piece whose field has control values field_c (MODEL.md §4)."""
     for q in range(NCOEF):
-        if mode == DENSITY_UNIFORM:
-            out[q] = scale
-        elif mode == DENSITY_EXCESS:
-            out[q] = scale * (field_c[q] - threshold)
-        else:
-            out[q] = scale * field_c[q]
+        out[q] = scale * rho_value(field_c[q], mode, threshold)
 
 
 @njit(**NJIT)

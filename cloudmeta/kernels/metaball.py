@@ -84,6 +84,54 @@ _REMAINDER = 5040.0 * 64.0
 _SEVENTH = 1.0 / 7.0
 
 
+@njit(**NJIT_INLINE)
+def _apply_frame(frame, x, y, z):
+    """M v for the frame M = S^-1 Q^T of a ball and v = (x, y, z)."""
+    return (frame[0, 0] * x + frame[0, 1] * y + frame[0, 2] * z,
+            frame[1, 0] * x + frame[1, 1] * y + frame[1, 2] * z,
+            frame[2, 0] * x + frame[2, 1] * y + frame[2, 2] * z)
+
+
+@njit(**NJIT_INLINE)
+def to_unit_frame(x, center, frame):
+    """x in the ball's unit frame, M (x - c), where u(x) = |M (x - c)|^2 (MODEL.md §1)."""
+    return _apply_frame(frame, x[0] - center[0], x[1] - center[1], x[2] - center[2])
+
+
+@njit(**NJIT_INLINE)
+def ball_field(x, center, frame, q, kernel, blobbiness):
+    """q k(u(x)), one ball's share of the field F at x (0 outside its support)."""
+    u = unit_distance2(x, center, frame)
+    if u < 1.0:
+        return q * falloff(kernel, u, blobbiness)
+    return 0.0
+
+
+@njit(**NJIT_INLINE)
+def field_sum(x, blob, items, lo, hi):
+    """F(x) over the balls items[lo:hi] of blob (a records.BlobRecord), added in that order."""
+    acc = 0.0
+    for m in range(lo, hi):
+        i = items[m]
+        acc += ball_field(x, blob.centers[i], blob.frames[i], blob.weights[i], blob.kernel, blob.blobbiness)
+    return acc
+
+
+@njit(**NJIT_INLINE)
+def gradient_sum(x, blob, items, lo, hi):
+    """grad F(x) over the balls items[lo:hi] of blob (a records.BlobRecord), added in that order."""
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    for m in range(lo, hi):
+        i = items[m]
+        ax, ay, az = ball_gradient(x, blob.centers[i], blob.frames[i], blob.weights[i], blob.kernel, blob.blobbiness)
+        gx += ax
+        gy += ay
+        gz += az
+    return gx, gy, gz
+
+
 @njit(**NJIT)
 def chord(o, d, center, frame):
     """The ray's chord through the ball's support u < 1: returns (t0, t1, a), a = 1 - min u on the line.
@@ -92,15 +140,8 @@ def chord(o, d, center, frame):
     d' = M d, u(t) = A t^2 + 2 (o'.d') t + |o'|^2 with A = |d'|^2. a is computed as 1 - |o' + t_m d'|^2 at
     the closest point t_m rather than as B^2 - A C, which cancels catastrophically far from the ball.
     """
-    ox = o[0] - center[0]
-    oy = o[1] - center[1]
-    oz = o[2] - center[2]
-    px = frame[0, 0] * ox + frame[0, 1] * oy + frame[0, 2] * oz
-    py = frame[1, 0] * ox + frame[1, 1] * oy + frame[1, 2] * oz
-    pz = frame[2, 0] * ox + frame[2, 1] * oy + frame[2, 2] * oz
-    dx = frame[0, 0] * d[0] + frame[0, 1] * d[1] + frame[0, 2] * d[2]
-    dy = frame[1, 0] * d[0] + frame[1, 1] * d[1] + frame[1, 2] * d[2]
-    dz = frame[2, 0] * d[0] + frame[2, 1] * d[1] + frame[2, 2] * d[2]
+    px, py, pz = to_unit_frame(o, center, frame)
+    dx, dy, dz = _apply_frame(frame, d[0], d[1], d[2])
     A = dx * dx + dy * dy + dz * dz
     tm = -(px * dx + py * dy + pz * dz) / A
     qx = px + tm * dx
@@ -175,12 +216,7 @@ def falloff_slope(kernel, u, blobbiness):
 @njit(**NJIT)
 def ball_gradient(x, center, frame, q, kernel, blobbiness):
     """grad of q k(u(x)): q k'(u) grad u, grad u = 2 M^T M (x - c). Returns its three components."""
-    ox = x[0] - center[0]
-    oy = x[1] - center[1]
-    oz = x[2] - center[2]
-    px = frame[0, 0] * ox + frame[0, 1] * oy + frame[0, 2] * oz
-    py = frame[1, 0] * ox + frame[1, 1] * oy + frame[1, 2] * oz
-    pz = frame[2, 0] * ox + frame[2, 1] * oy + frame[2, 2] * oz
+    px, py, pz = to_unit_frame(x, center, frame)
     u = px * px + py * py + pz * pz
     if u >= 1.0:
         return 0.0, 0.0, 0.0
@@ -193,12 +229,7 @@ def ball_gradient(x, center, frame, q, kernel, blobbiness):
 @njit(**NJIT)
 def unit_distance2(x, center, frame):
     """u(x) = |M (x - c)|^2."""
-    ox = x[0] - center[0]
-    oy = x[1] - center[1]
-    oz = x[2] - center[2]
-    px = frame[0, 0] * ox + frame[0, 1] * oy + frame[0, 2] * oz
-    py = frame[1, 0] * ox + frame[1, 1] * oy + frame[1, 2] * oz
-    pz = frame[2, 0] * ox + frame[2, 1] * oy + frame[2, 2] * oz
+    px, py, pz = to_unit_frame(x, center, frame)
     return px * px + py * py + pz * pz
 
 
@@ -382,14 +413,16 @@ def keep_piece(ta, tb, tmin, tmax):
 
 
 @njit(**NJIT)
-def chord_pieces(kernel, a, b, q, t0, t1, tmin, tmax, p_t0, p_t1, p_c, n):
+def chord_pieces(kernel, a, b, q, t0, t1, tmin, tmax, rows, n):
     """The pieces of q k(u) (nishimura, blinn; blobbiness b) on the chord [t0, t1] with 0 < a <= 1, as
-    (t0, t1, control values) rows of p_t0, p_t1, p_c from index n on. Pieces of zero length or outside
-    (tmin, tmax) are left out; all others are counted, but only rows below the arrays' capacity are
-    written. Returns n plus their number. Consecutive pieces share their end t bit for bit.
+    (t0, t1, control values) rows of rows.chord_t0, chord_t1, chord_c (a records.SweepScratch) from index
+    n on. Pieces of zero length or outside (tmin, tmax) are left out; all others are counted, but only
+    rows below the arrays' capacity are written. Returns n plus their number. Consecutive pieces share
+    their end t bit for bit.
 
     sweep.gather_chords runs this same loop written out (see there why); the tests check that the two
     agree. The helpers it calls are inlined (NJIT_INLINE) for the same reason."""
+    p_t0, p_t1, p_c = rows.chord_t0, rows.chord_t1, rows.chord_c
     cap = p_t0.shape[0]
     inner, s_stop = piece_plan(kernel, a)
     alpha = 0.0

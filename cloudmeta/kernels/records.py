@@ -26,6 +26,10 @@ Rays = namedtuple("Rays", ["origins", "directions", "t_max"])
 #: segs (R, cap, 2); the counts are true counts, the lists hold the first cap
 TraceOut = namedtuple("TraceOut", ["tau", "n_roots", "roots", "n_seg", "segs"])
 
+#: balls binned into a coarse uniform grid of cells (kernels.grid): origin (3,), cell size, dims (3,) cells
+#: per axis, start (cells + 1,) offsets into items, the ball indices of each cell in increasing order
+CellGrid = namedtuple("CellGrid", ["origin", "size", "dims", "start", "items"])
+
 #: every medium's balls in one set of arrays (MODEL.md §4): centers (N, 3), frames (N, 3, 3),
 #: weights (N,), start (M + 1,) ball offsets; per medium kernel, threshold, blobbiness (blinn's b),
 #: mode (sweep.DENSITY_*), scale (sigma_t = scale * rho), albedo, phase (M, 4) = kind, g1, g2, w
@@ -72,10 +76,10 @@ Camera = namedtuple("Camera", ["position", "forward", "right", "up", "width", "h
 #: one blob's sweep along a ray (kernels.sweep.alloc_scratch), reused ray after ray: the chords (t0, t1,
 #: control values); the sweep's breakpoints, start order and active list; the composite intervals (t0,
 #: t1, control values, magnitude); the inside pieces (t0, t1, F); the transitions; the clipping stack
-#: (lo, hi, control values); clipping's work rows, g = F - T on an interval, and its roots (loc, rising)
+#: (lo, hi, control values); g = F - T on an interval, and its roots (loc, rising)
 SweepScratch = namedtuple("SweepScratch", ["chord_t0", "chord_t1", "chord_c", "bp", "order", "act", "iv_t0",
                                            "iv_t1", "iv_c", "iv_mag", "out_t0", "out_t1", "out_c", "roots",
-                                           "st_lo", "st_hi", "st_c", "work", "g", "loc", "rising"])
+                                           "st_lo", "st_hi", "st_c", "g", "loc", "rising"])
 
 #: the pieces of every medium on one camera ray (kernels.media.alloc_ray_pieces): t0, t1, sigma_t
 #: control values, medium; the interval sweep's breakpoints, start order and active list; and the

@@ -12,7 +12,7 @@ from numba import njit
 
 from ..config import NJIT, NJIT_INLINE
 from .bvh import bvh_candidates, bvh_point_candidates
-from .metaball import ball_gradient
+from .metaball import gradient_sum
 from .records import BlobRecord
 from .sweep import first_entry
 
@@ -75,18 +75,7 @@ def surface_normal(x, d, surf, s, cand, stack, n_out):
     """n = -grad F / |grad F| of surface s at x (the analytic gradient, MODEL.md §6), into n_out; where the
     gradient vanishes (a camera inside a surface, at a critical point) n = -d, facing the viewer."""
     n_cand = bvh_point_candidates(x, surf.bvh, surf.bvh.root[s], stack, cand)
-    centers, frames, weights = surf.centers, surf.frames, surf.weights
-    kernel = surf.kernel[s]
-    b = surf.blobbiness[s]
-    gx = 0.0
-    gy = 0.0
-    gz = 0.0
-    for k in range(n_cand):
-        i = cand[k]
-        ax, ay, az = ball_gradient(x, centers[i], frames[i], weights[i], kernel, b)
-        gx += ax
-        gy += ay
-        gz += az
+    gx, gy, gz = gradient_sum(x, surface_blob(surf, s), cand, 0, n_cand)
     g = math.sqrt(gx * gx + gy * gy + gz * gz)
     if g > 0.0 and g < np.inf:
         n_out[0] = -gx / g

@@ -42,7 +42,7 @@ def alloc_scratch(capacity):
         out_t0=np.empty(n_pieces), out_t1=np.empty(n_pieces), out_c=np.empty((n_pieces, NCOEF)),
         roots=np.empty(ROOTS_PER_INTERVAL * 2 * p),
         st_lo=np.empty(STACK_DEPTH), st_hi=np.empty(STACK_DEPTH), st_c=np.empty((STACK_DEPTH, NCOEF)),
-        work=np.empty((2, NCOEF)), g=np.empty(NCOEF), loc=np.empty(16), rising=np.empty(16, np.bool_))
+        g=np.empty(NCOEF), loc=np.empty(16), rising=np.empty(16, np.bool_))
 
 
 @njit(**NJIT)
@@ -67,6 +67,18 @@ def heap_argsort(keys, idx, n):
     for end in range(n - 1, 0, -1):
         idx[0], idx[end] = idx[end], idx[0]
         _sift(keys, idx, 0, end)
+
+
+@njit(**NJIT_INLINE)
+def insertion_sort(a, n):
+    """Sort a[:n] in place (stable, without allocating): for few items."""
+    for i in range(1, n):
+        v = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > v:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = v
 
 
 @njit(**NJIT_INLINE)
@@ -102,13 +114,7 @@ def _sift(keys, idx, root, n):
 def heap_sort(a, n):
     """Sort a[:n] in place."""
     if n <= SMALL_SORT:
-        for i in range(1, n):
-            v = a[i]
-            j = i - 1
-            while j >= 0 and a[j] > v:
-                a[j + 1] = a[j]
-                j -= 1
-            a[j + 1] = v
+        insertion_sort(a, n)
         return
     for start in range(n // 2 - 1, -1, -1):
         _sift_values(a, start, n)
@@ -335,7 +341,7 @@ def inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch):
     """
     iv_t0, iv_t1, iv_c, iv_mag = scratch.iv_t0, scratch.iv_t1, scratch.iv_c, scratch.iv_mag
     o_t0, o_t1, o_c, roots = scratch.out_t0, scratch.out_t1, scratch.out_c, scratch.roots
-    st_lo, st_hi, st_c, work, g = scratch.st_lo, scratch.st_hi, scratch.st_c, scratch.work, scratch.g
+    st_lo, st_hi, st_c, g = scratch.st_lo, scratch.st_hi, scratch.st_c, scratch.g
     loc, rising = scratch.loc, scratch.rising
     n_out = 0
     n_roots = 0
@@ -360,7 +366,7 @@ def inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch):
             inside = start_in
         w = tb - ta
         eps_g = NOISE * (threshold + iv_mag[k] * NCOEF)
-        m = clip_roots(g, tol_t / w, eps_g, st_lo, st_hi, st_c, work, loc, rising)
+        m = clip_roots(g, tol_t / w, eps_g, st_lo, st_hi, st_c, loc, rising)
         s_in = 0.0
         for j in range(m):
             if rising[j] == inside:
@@ -393,15 +399,23 @@ def _emit(c, ta, tb, s0, s1, o_t0, o_t1, o_c, n_out):
     subdivide(c, s0, s1, o_c[n_out])
 
 
-@njit(**NJIT)
-def density_mean(c, mode, threshold):
-    """Mean of rho over a piece whose field has control values c (MODEL.md §4 density modes)."""
+@njit(**NJIT_INLINE)
+def rho_value(f, mode, threshold):
+    """rho where the field is f, inside (F >= T): the density modes of MODEL.md §4, in one place. Applied
+    to a piece's control values it gives rho's, to their mean rho's mean (rho is affine in F)."""
     if mode == DENSITY_UNIFORM:
         return 1.0
-    m = bernstein_mean(c)
     if mode == DENSITY_EXCESS:
-        return m - threshold
-    return m
+        return f - threshold
+    return f
+
+
+@njit(**NJIT)
+def density_mean(c, mode, threshold):
+    """Mean of rho over a piece whose field has control values c."""
+    if mode == DENSITY_UNIFORM:
+        return 1.0
+    return rho_value(bernstein_mean(c), mode, threshold)
 
 
 @njit(**NJIT)

@@ -5,7 +5,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import NJIT_INLINE, NJIT_PARALLEL
-from .metaball import ball_gradient, falloff, unit_distance2
+from .metaball import field_sum, gradient_sum
 from .bvh import STACK, bvh_candidates
 from .records import BVH, BlobRecord
 from .sweep import alloc_scratch, first_entry, pieces_optical_depth, trace_blob
@@ -69,15 +69,15 @@ def merge_segments(o_t0, o_t1, n_out, segs):
 
 
 @njit(**NJIT_PARALLEL)
-def field_at(points, centers, frames, weights, kernel, blobbiness, out):
-    """F(x) = sum_i q_i k(u_i(x)) at every point (all balls; the grid sampler culls)."""
+def field_at(points, blob, out):
+    """F(x) = sum_i q_i k(u_i(x)) at every point (all balls of ``blob``, a records.BlobRecord; the grid
+    sampler culls)."""
+    centers, frames, weights, kernel, blobbiness, threshold = blob  # rebuilt in the loop (see trace_rays)
+    n = centers.shape[0]
+    items = np.arange(n)
     for p in prange(points.shape[0]):
-        acc = 0.0
-        for i in range(centers.shape[0]):
-            u = unit_distance2(points[p], centers[i], frames[i])
-            if u < 1.0:
-                acc += weights[i] * falloff(kernel, u, blobbiness)
-        out[p] = acc
+        out[p] = field_sum(points[p], BlobRecord(centers, frames, weights, kernel, blobbiness, threshold), items,
+                           0, n)
 
 
 @njit(**NJIT_PARALLEL)
@@ -104,17 +104,14 @@ def first_hits(rays, blob, bvh, tol_t, n_chunks, out):
 
 
 @njit(**NJIT_PARALLEL)
-def gradient_at(points, centers, frames, weights, kernel, blobbiness, out):
-    """grad F(x) = sum_i q_i k'(u_i) grad u_i at every point (all balls), into out (N, 3)."""
+def gradient_at(points, blob, out):
+    """grad F(x) = sum_i q_i k'(u_i) grad u_i at every point (all balls of ``blob``), into out (N, 3)."""
+    centers, frames, weights, kernel, blobbiness, threshold = blob  # rebuilt in the loop (see trace_rays)
+    n = centers.shape[0]
+    items = np.arange(n)
     for p in prange(points.shape[0]):
-        gx = 0.0
-        gy = 0.0
-        gz = 0.0
-        for i in range(centers.shape[0]):
-            ax, ay, az = ball_gradient(points[p], centers[i], frames[i], weights[i], kernel, blobbiness)
-            gx += ax
-            gy += ay
-            gz += az
+        gx, gy, gz = gradient_sum(points[p], BlobRecord(centers, frames, weights, kernel, blobbiness, threshold),
+                                  items, 0, n)
         out[p, 0] = gx
         out[p, 1] = gy
         out[p, 2] = gz

@@ -1,0 +1,107 @@
+"""The stages of the single-scattering estimator (cloudmeta.kernels.radiance) on their own: elementary
+intervals against the naive sum of the pieces, the product-integration weights against a fine quadrature,
+the depth inversion, the camera ray, and the whole estimator on a closed form."""
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+from cloudmeta import pack
+from cloudmeta.kernels import radiance as kr
+from cloudmeta.kernels.media import alloc_ray_pieces
+from cloudmeta.kernels.records import Camera
+from cloudmeta.render import Quality
+from cloudmeta.scene import load_scene
+from tests import naive
+
+QUALITY = Quality(tolerance=1e-3, max_tau=1.0, max_length=0.5, max_angle=0.1, cutoff=1e-4, tol_t=1e-9)
+
+
+def test_elementary_intervals_add_the_media(rng):
+    """Three pieces of two media, overlapping: per interval sigma_t of each medium and of all, and the
+    optical depth from the ray's start, against the naive evaluation and integral of the pieces."""
+    pieces = [(0.0, 2.0, 0), (1.0, 3.0, 1), (2.5, 4.0, 0)]
+    rp = alloc_ray_pieces(8, 2)
+    coeffs = rng.uniform(0.1, 2.0, (3, 7))
+    for k, (t0, t1, m) in enumerate(pieces):
+        rp.t0[k], rp.t1[k], rp.medium[k] = t0, t1, m
+        rp.c[k] = coeffs[k]
+
+    def sigma(t, medium=None):
+        return sum(naive.bernstein_eval(coeffs[k], (t - t0) / (t1 - t0)) for k, (t0, t1, m) in enumerate(pieces)
+                   if t0 <= t <= t1 and medium in (None, m))
+
+    n_el = kr.elementary_intervals(3, rp)
+    np.testing.assert_array_equal(rp.el_t0[:n_el], [0.0, 1.0, 2.0, 2.5, 3.0])
+    np.testing.assert_array_equal(rp.el_t1[:n_el], [1.0, 2.0, 2.5, 3.0, 4.0])
+    x, w = np.polynomial.legendre.leggauss(8)
+    depth = 0.0
+    for k in range(n_el):
+        a, b = rp.el_t0[k], rp.el_t1[k]
+        assert rp.el_u0[k] == pytest.approx(depth, rel=1e-13, abs=1e-15)
+        for s in (0.2, 0.7):
+            t = a + s * (b - a)
+            assert naive.bernstein_eval(rp.el_S[k], s) == pytest.approx(sigma(t), rel=1e-13)
+            for m in range(2):
+                assert naive.bernstein_eval(rp.el_sig[k, m], s) == pytest.approx(sigma(t, m), rel=1e-13, abs=1e-15)
+        depth += 0.5 * (b - a) * sum(wi * sigma(a + 0.5 * (b - a) * (xi + 1)) for xi, wi in zip(x, w))
+    assert rp.el_u0[n_el] == pytest.approx(depth, rel=1e-13)
+
+
+@pytest.mark.parametrize("h", [1e-3, 0.5, 4.0, 15.0])
+def test_exp_weights_integrate_exp_times_the_lagrange_basis(h):
+    quad = pack.quadrature(QUALITY)
+    for x, lag in ((quad.gauss_x, quad.gauss_lag), (quad.kronrod_x, quad.kronrod_lag)):
+        out = np.empty(16)
+        kr._exp_weights(h, lag, quad.fine_y, quad.fine_w, out)
+        np.testing.assert_allclose(out[:len(x)], naive.exp_weights(h, x), rtol=1e-10, atol=1e-14 * h)
+
+
+def test_depth_to_s_inverts_the_exact_cumulative(rng):
+    S = rng.uniform(0.2, 3.0, 7)
+    w = 1.7
+    total = w * S.mean()
+    s_prev, u_prev = 0.0, 0.0
+    for u in np.linspace(0.05, 0.95, 7) * total:  # increasing, as the nodes come
+        s = kr._depth_to_s(S, w, u, s_prev, u_prev)
+        x, wt = np.polynomial.legendre.leggauss(12)
+        cum = w * 0.5 * s * sum(wi * naive.bernstein_eval(S, 0.5 * s * (xi + 1)) for xi, wi in zip(x, wt))
+        assert cum == pytest.approx(u, rel=1e-12)
+        s_prev, u_prev = s, u
+
+
+def test_camera_ray_through_the_centre_looks_forward():
+    camera = Camera(np.zeros(3), np.array([0.0, 1.0, 0.0]), np.array([0.5, 0.0, 0.0]), np.array([0.0, 0.0, 0.25]),
+                         5, 3, 1, 0)
+    d = np.empty(3)
+    kr.camera_ray(camera, 1, 2, 0, 1, d)
+    np.testing.assert_allclose(d, [0.0, 1.0, 0.0], atol=1e-16)
+    kr.camera_ray(camera, 0, 4, 0, 1, d)  # top right pixel: right and up, normalised
+    x, y = 2.0 * 4.5 / 5 - 1.0, 1.0 - 2.0 * 0.5 / 3
+    ref = np.array([0.5 * x, 1.0, 0.25 * y])
+    np.testing.assert_allclose(d, ref / np.linalg.norm(ref), rtol=1e-15)
+
+
+def test_single_scattering_of_an_absorbing_ball(tmp_path):
+    """The estimator alone on a closed form: a uniform ball (sigma_t 0.8, inside radius 1) that only
+    absorbs, in front of a white background: L = T = exp(-0.8 * 2) through its centre, t_hit = inf."""
+    path = tmp_path / "s.yaml"
+    path.write_text(textwrap.dedent("""
+        image: {width: 1, height: 1}
+        camera: {position: [0, -6, 0], look_at: [0, 0, 0], up: [0, 0, 1], fov: 1}
+        background: [1, 1, 1]
+        lights: [{type: directional, direction: [0, -1, 0], irradiance: 2}]
+        media:
+          - {kernel: wyvill6, threshold: 0.5, density: {mode: uniform, scale: 0.8}, albedo: 0.0,
+             balls: [{center: [0, 0, 0], radius: 2.0}]}
+        """))
+    scene = load_scene(path)
+    quad = pack.quadrature(QUALITY)
+    records = pack.scene_records(scene, quad, 16)
+    work = kr.alloc_ray_work(records)
+    out = np.empty(5)
+    kr.single_scattering(np.array([0.0, -6.0, 0.0]), np.array([0.0, 1.0, 0.0]), records, quad, work, out)
+    t = math.exp(-0.8 * 2.0)
+    np.testing.assert_allclose(out[:4], [t, t, t, t], rtol=1e-12)
+    assert out[4] == np.inf
