@@ -259,7 +259,7 @@ def solve_all(G, tol):
     for g in G:
         g = np.ascontiguousarray(g)
         n = clip_roots(g, tol, 0.0, *cs)
-        r_clip = cs[4][:n].copy()
+        r_clip = cs[3][:n].copy()
         n, its, m = laguerre_roots(g, tol, *ls)
         r_lag = ls[4][:n].copy()
         n = companion_roots(g, *ks)

@@ -91,7 +91,7 @@ def clipping_scratch():
 def run_clipping(g, tol):
     s = clipping_scratch()
     n = clip_roots(g, tol, 0.0, *s)
-    return s[4][:n].copy()
+    return s[3][:n].copy()
 
 
 def run_laguerre(g, tol):
