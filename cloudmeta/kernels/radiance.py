@@ -40,7 +40,12 @@ trace no media. A scene without surfaces traces nothing more: every surface loop
 
 Inlining: ``source_at`` and ``light_at_node`` run once per quadrature node and are inlined at numba's IR
 level (NJIT_INLINE), so that no call boundary, with the reference counting of every array of the
-records, remains per node.
+records, remains per node. The estimator's stages with one caller each (``single_scattering``,
+``in_scattering``, ``segment_in_scattering``, ``step_in_scattering``, ``ray_end``) are inlined into
+``render_pixels`` too, for compile time: numba links every separately compiled callee into its caller's
+module and optimises and generates machine code for the whole module again, so each level of the call
+chain above the shadow-ray and sweep code compiled all of that code once more (cumulus cold compile,
+process CPU: 375 s with the stages separate, 300 s inlined; docs/performance_notes.md §2b).
 """
 import math
 
@@ -285,7 +290,7 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     return scratch, (k, s, u)
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
     """out[:3] += the in-scattering integral over the step [u0, u0 + h] of view optical depth: 7 Gauss
     nodes; where the tail of their Legendre expansion says J is rougher than the tolerance allows, the 8
@@ -376,7 +381,7 @@ def _add_rule(out, e0, node_w, j_val, cols, n):
             out[c] += e0 * node_w[g] * j_val[c, cols[g]]
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out):
     """out[:3] += the in-scattering integral over the inside segment of intervals k_a .. k_b - 1 (adjacent
     end to start): cut at equal angles seen from the point light that sees it under the widest angle,
@@ -434,7 +439,7 @@ def scatters_light(scene):
     return (scene.lights.kind.shape[0] > 0 or has_ambient) and scatters
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def in_scattering(o, d, n_el, scene, quad, work, out):
     """out[:3] += the single-scattering integral over the ray's n_el elementary intervals (in
     work.pieces), segment after segment, up to where the view transmittance falls below ``cutoff``.
@@ -477,7 +482,7 @@ def shade_surface(o, d, t_hit, s, scene, quad, scratch, work):
             colour[2] * (e2 / math.pi + ambient[2]))
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def ray_end(o, d, t_hit, s_hit, u_total, scene, quad, work, out):
     """out[:3] += L_end T(0, t_end): the background for an escaping ray, the shaded surface for a hit
     (not shaded where it is seen through less than ``cutoff``). out[3] = T(0, t_end), 0 for a hit (alpha 1).
@@ -506,7 +511,7 @@ def surface_hit(o, d, surf, tol_t, work):
     return work.scratch, np.inf, -1
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def single_scattering(o, d, scene, quad, work, out):
     """The single-scattering estimator (MODEL.md §5-6) of the camera ray o + t d: out[:3] = its radiance,
     out[3] = its transmittance T(0, t_end) (0 where it meets a surface), out[4] = t_hit, where it first
