@@ -319,6 +319,7 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
     With ``depth=True`` returns (image, depth): depth (H x W, float64) is, per pixel, the distance along
     the camera ray to the nearest surface hit among its samples (inf where no sample meets a surface).
     """
+    multiple = _multiple_scattering(scene)
     lo, hi = scene.bbox()
     q = resolve_quality(scene.render, float(np.linalg.norm(hi - lo)))
     media = pack_media(scene.media)
@@ -356,9 +357,21 @@ def render(scene: Scene, progress=True, seed=0, depth=False):
         for done in pool.map(band, bands):
             bar.update(done)
     bar.close()
+    if multiple is not None:
+        image, _ = multiple(scene, image, seed=seed, progress=progress)
     if depth:
         return image.astype(np.float32), nearest
     return image.astype(np.float32)
+
+
+def _multiple_scattering(scene):
+    """With ``render.scattering: multiple``, the hook that adds the Monte Carlo orders to the image
+    (cloudmeta.multiple), after checking the scene for it; None for single scattering."""
+    if scene.render.scattering != "multiple":
+        return None
+    from .multiple import add_multiple, check_multiple  # it imports this module
+    check_multiple(scene)
+    return add_multiple
 
 
 def _media_bbox(scene):

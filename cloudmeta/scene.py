@@ -23,6 +23,7 @@ from .errors import InputError, SceneError
 
 QUALITIES = ("draft", "default", "fine", "reference")
 SHADOW_MODES = ("exact", "map")
+SCATTERING_MODES = ("single", "multiple")
 DENSITY_MODES = ("field", "excess", "uniform")
 #: phase type -> its parameters (all required when the type is named)
 PHASE_PARAMS = {"isotropic": (), "hg": ("g",), "double_hg": ("g1", "g2", "w"), "rayleigh": ()}
@@ -113,6 +114,9 @@ class RenderSettings:
     shadows: str = "exact"
     shadow_map: int | None = None
     colourspace: str = DEFAULT_COLOURSPACE
+    scattering: str = "single"  #: single | multiple (README: multiple scattering)
+    max_order: int = 64         #: multiple: the highest scattering order
+    ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
 
 
 @dataclass(frozen=True)
@@ -498,7 +502,10 @@ def _render(top):
         root_tolerance=n.number("root_tolerance", None, **_POSITIVE),
         shadows=n.choice("shadows", SHADOW_MODES, "exact"),
         shadow_map=n.integer("shadow_map", None, check=lambda v: v >= 2, expect="an integer >= 2"),
-        colourspace=colourspace)
+        colourspace=colourspace,
+        scattering=n.choice("scattering", SCATTERING_MODES, "single"),
+        max_order=n.integer("max_order", 64, check=lambda v: v >= 1, expect="an integer >= 1"),
+        ms_spp=n.integer("ms_spp", 16, check=lambda v: v >= 1, expect="an integer >= 1"))
 
 
 def _output(top):
