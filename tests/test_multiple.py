@@ -219,3 +219,15 @@ def test_ambient_is_refused_in_multiple_mode(tmp_path):
         cm.render(scene, progress=False)
     with pytest.raises(SceneError, match="ambient"):
         render_multiple(scene)
+
+
+def test_slab_against_adding_doubling(tmp_path):
+    """One slab case of validation/multiple_scattering.py (tau 2, albedo 0.8, g 0; reflected and
+    transmitted radiance at nu ~ 0.6) within 1 % or 3 standard errors of iadpython."""
+    pytest.importorskip("iadpython")  # a validation-only dependency (the dev extra)
+    from validation import multiple_scattering as ms
+    rows = ms.slab(tmp_path, quick=True)
+    assert len(rows) == 2
+    for r in rows:
+        assert abs(r["rel"]) < 0.01 or abs(r["z"]) < 3, r
+        assert abs(r["rel"]) < 0.03, r

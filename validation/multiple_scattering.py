@@ -6,8 +6,8 @@
    (image - environment) / (the renderer's own standard error).
 2. Slab: a wide flat uniform slab (one `uniform` ellipsoid of radii 10^4, 10^4, 1: locally flat to 1e-8
    where the camera looks), lit at normal incidence by a directional light of irradiance 1, against
-   adding-doubling (iadpython, index 1 everywhere, 32 quadrature angles; 64 to show the reference has
-   converged). The radiance reflected (camera above) and transmitted (camera below) at the quadrature
+   adding-doubling (iadpython, index 1 everywhere, 32 quadrature angles; its fluxes UR1, UT1 at 16
+   against 32 angles show how far it has converged). The radiance reflected (camera above) and transmitted (camera below) at the quadrature
    angle nu nearest 0.6 is compared with R[nu, 1] / pi and T[nu, 1] / pi of iadpython's matrices (their
    columns at nu = 1 are normal incidence; sum_i 2 nu_i w_i R[i, 1] is its UR1). Optical thickness 0.5, 2
    and 8, albedo 0.8 and 0.99, g = 0 and 0.85. Requirement: within 1 % or within 3 standard errors.
@@ -129,6 +129,14 @@ def adding_doubling(tau, albedo, g, quad_pts):
     return np.array(s.nu), R[:, -1] / math.pi, T[:, -1] / math.pi
 
 
+def iad_fluxes(tau, albedo, g, quad_pts):
+    """(UR1, UT1): iadpython's total reflectance and transmittance for normal incidence."""
+    import iadpython as iad
+    s = iad.Sample(a=albedo, b=tau, g=g, n=1.0, n_above=1.0, n_below=1.0, quad_pts=quad_pts)
+    ur1, ut1, _, _ = s.rt()
+    return float(ur1), float(ut1)
+
+
 def slab_radiance(tmp, tau, albedo, g, nu, reflected, paths, target_rel, max_seconds):
     """The slab's radiance in direction nu (cosine from the normal) above (reflected) or below it:
     deterministic order 1 plus batches of Monte Carlo paths until the standard error is below target_rel
@@ -170,18 +178,19 @@ def slab(tmp, quick):
         nu = float(nu32[i])
         ref_conv = None
         if not quick:
-            nu64, r64, t64 = adding_doubling(tau, a, g, 64)
-            # the 64-angle reference interpolated to nu (its nodes differ): the reference's own spread
-            ref_conv = (float(np.interp(nu, nu64, r64)) / r32[i] - 1, float(np.interp(nu, nu64, t64)) / t32[i] - 1)
+            # the reference's own convergence: its total reflectance and transmittance, 16 against 32 angles
+            # (iadpython 0.5.3 returns nonsense at 64)
+            flux = [iad_fluxes(tau, a, g, n) for n in (32, 16)]
+            ref_conv = (flux[1][0] / flux[0][0] - 1, flux[1][1] / flux[0][1] - 1)
         for reflected, ref in ((True, r32[i]), (False, t32[i])):
             value, se, n, sec = slab_radiance(tmp, tau, a, g, nu, reflected, paths=64 if quick else 256,
                                               target_rel=0.01 if quick else 0.002,
-                                              max_seconds=20 if quick else 150)
+                                              max_seconds=20 if quick else 60)
             rel = value / ref - 1
             ok = abs(rel) < 0.01 or abs(value - ref) < 3 * se
             rows.append(dict(tau=tau, albedo=a, g=g, side="R" if reflected else "T", nu=nu, cloudmeta=value,
                              stderr=se, iad=float(ref), rel=rel, z=(value - ref) / se if se > 0 else np.inf,
-                             paths=n, seconds=sec, iad_64_vs_32=None if ref_conv is None else
+                             paths=n, seconds=sec, iad_16_vs_32=None if ref_conv is None else
                              ref_conv[0 if reflected else 1], passed=bool(ok)))
             r = rows[-1]
             print(f"  tau {tau:4.1f} a {a:4.2f} g {g:4.2f} {r['side']} nu {nu:.4f}: cloudmeta {value:.6f} "
@@ -218,13 +227,53 @@ def cumulus(size, paths):
     return rows
 
 
+def figures(size, paths, out):
+    """Single and multiple scattering side by side, front-lit and back-lit, with time and estimated error
+    under each picture (docs/multiple_cumulus.png)."""
+    from PIL import Image, ImageDraw
+
+    from cloudmeta.colour import encode_srgb
+    tiles = []
+    for name in ("cumulus", "cumulus_backlit"):
+        scene = cm.load_scene(ROOT / "scenes" / f"{name}.yaml", width=size, height=size)
+        t0 = time.perf_counter()
+        single = cm.render(scene, progress=False)  # as the scene file says: single scattering with ambient
+        t_single = time.perf_counter() - t0
+        multi_scene = replace(scene, ambient=None, render=replace(scene.render, scattering="multiple", ms_spp=paths))
+        t0 = time.perf_counter()
+        base = cm.render(replace(multi_scene, render=replace(multi_scene.render, scattering="single")),
+                         progress=False)[..., :3].astype(np.float64)
+        mean, err = render_multiple(multi_scene)
+        t_multi = time.perf_counter() - t0
+        multi = base + mean
+        rel = float(np.sqrt(np.mean(err ** 2)) / np.sqrt(np.mean(multi ** 2)))
+        tiles.append((single[..., :3], f"{name}: single + ambient, {t_single:.1f} s"))
+        tiles.append((multi, f"multiple, {paths} paths/px: {t_multi:.0f} s, est. rel. RMSE {rel:.1%}"))
+        print(f"  {name}: single {t_single:.1f} s; multiple {t_multi:.1f} s ({paths} paths), rel RMSE {rel:.2%}")
+    pad = 22
+    sheet = Image.new("RGB", (2 * size, 2 * (size + pad)), "white")
+    draw = ImageDraw.Draw(sheet)
+    for k, (img, caption) in enumerate(tiles):
+        x, y = (k % 2) * size, (k // 2) * (size + pad)
+        sheet.paste(Image.fromarray(encode_srgb(np.asarray(img, np.float64), 0.0, "ITU-R BT.709")), (x, y))
+        draw.text((x + 3, y + size + 5), caption, fill="black")
+    sheet.save(out)
+    print(f"  wrote {out}")
+
+
 def main(argv=None, quick=False):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="small furnace, one slab case, small cumulus")
     ap.add_argument("--skip-cumulus", action="store_true")
     ap.add_argument("--skip-slab", action="store_true")
+    ap.add_argument("--figures", metavar="PNG", help="only the side-by-side cumulus pictures, written to PNG")
+    ap.add_argument("--size", type=int, default=256, help="--figures: pixels per side")
+    ap.add_argument("--paths", type=int, default=64, help="--figures: Monte Carlo paths per pixel")
     args = ap.parse_args([] if argv is None else argv)
     quick = quick or args.quick
+    if args.figures:
+        figures(args.size, args.paths, args.figures)
+        return dict(passed=True)
     print(f"Multiple scattering ({numba.get_num_threads()} threads)")
     with tempfile.TemporaryDirectory() as tmp:
         print("1. white furnace (albedo 1, field density, uniform environment, no lights)")

@@ -92,11 +92,6 @@ def n_surface_balls(surf):
 
 
 @njit(**NJIT_INLINE)
-def surfaces_roots(surf):
-    return surf[8], surf[13]
-
-
-@njit(**NJIT_INLINE)
 def n_surfaces(surf):
     return surf[3].shape[0] - 1
 
