@@ -227,9 +227,14 @@ def cumulus(size, paths):
     return rows
 
 
+#: exposure of the side-by-side pictures (stops, the same for all): multiply scattered light makes the
+#: cumulus several times brighter than its single-scattering scene files were set up for
+EXPOSURE = -2.0
+
+
 def figures(size, paths, out):
     """Single and multiple scattering side by side, front-lit and back-lit, with time and estimated error
-    under each picture (docs/multiple_cumulus.png)."""
+    under each picture (docs/multiple_cumulus.png), all at exposure EXPOSURE."""
     from PIL import Image, ImageDraw
 
     from cloudmeta.colour import encode_srgb
@@ -247,16 +252,16 @@ def figures(size, paths, out):
         t_multi = time.perf_counter() - t0
         multi = base + mean
         rel = float(np.sqrt(np.mean(err ** 2)) / np.sqrt(np.mean(multi ** 2)))
-        tiles.append((single[..., :3], f"{name}: single + ambient, {t_single:.1f} s"))
-        tiles.append((multi, f"multiple, {paths} paths/px: {t_multi:.0f} s, est. rel. RMSE {rel:.1%}"))
+        tiles.append((single[..., :3], f"{name}\nsingle + ambient, {t_single:.1f} s"))
+        tiles.append((multi, f"multiple, {paths} paths: {t_multi:.0f} s\nest. rel. RMSE {rel:.1%}"))
         print(f"  {name}: single {t_single:.1f} s; multiple {t_multi:.1f} s ({paths} paths), rel RMSE {rel:.2%}")
-    pad = 22
+    pad = 30
     sheet = Image.new("RGB", (2 * size, 2 * (size + pad)), "white")
     draw = ImageDraw.Draw(sheet)
     for k, (img, caption) in enumerate(tiles):
         x, y = (k % 2) * size, (k // 2) * (size + pad)
-        sheet.paste(Image.fromarray(encode_srgb(np.asarray(img, np.float64), 0.0, "ITU-R BT.709")), (x, y))
-        draw.text((x + 3, y + size + 5), caption, fill="black")
+        sheet.paste(Image.fromarray(encode_srgb(np.asarray(img, np.float64), EXPOSURE, "ITU-R BT.709")), (x, y))
+        draw.multiline_text((x + 3, y + size + 3), caption, fill="black")
     sheet.save(out)
     print(f"  wrote {out}")
 
