@@ -88,18 +88,41 @@ def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=
     ``rows=(r0, r1)`` and ``columns=(c0, c1)`` render only that tile of the frame (rows r0 .. r1 - 1 from
     the top), bit-identical to the same pixels of the whole frame: every pixel's rays and samples depend on
     its place in the frame alone. A tile still allocates the whole frame's arrays (40 bytes a pixel).
+    With ``render.scattering: multiple`` the Monte Carlo orders (cloudmeta.multiple) are added to the
+    tile's pixels; their random numbers are keyed by the pixel too.
     """
     if not isinstance(scene, Scene):  # issue #15: the API's wrong types are InputErrors naming the argument
         raise InputError(f"scene: expected a cloudmeta Scene (from load_scene), got {type(scene).__name__}")
-    (r_lo, r_hi), (c_lo, c_hi) = _window(rows, scene.image.height, "rows"), _window(columns, scene.image.width,
-                                                                                     "columns")
-    lo, hi = scene.bbox()
-    quad = quadrature(resolve_quality(scene.render, float(np.linalg.norm(hi - lo))))
-    records = scene_records(scene, quad, scene.render.shadow_map or SHADOW_MAP_RESOLUTION)
-    camera = pack_camera(scene, seed)
+    window = _window(rows, scene.image.height, "rows"), _window(columns, scene.image.width, "columns")
+    multiple = _multiple_scattering(scene)
+    packed = pack_scene(scene, seed)
+    camera, records, quad = packed
     w, h = scene.image.width, scene.image.height
     image = np.zeros((h, w, 4), np.float64)
     nearest = np.full((h, w), np.inf)
+    run_bands(lambda row0, p0, p1: render_pixels(camera, records, quad, row0, p0, p1, image, nearest), window, w,
+              progress)
+    (r_lo, r_hi), (c_lo, c_hi) = window
+    image, nearest = image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi]
+    if multiple is not None:
+        image, _ = multiple(scene, image, seed=seed, progress=progress, rows=rows, columns=columns, packed=packed)
+    if depth:
+        return image.astype(np.float32), nearest.copy()
+    return image.astype(np.float32)
+
+
+def pack_scene(scene, seed):
+    """(camera, scene records, quadrature): the scene packed once for every estimator (cloudmeta.pack)."""
+    lo, hi = scene.bbox()
+    quad = quadrature(resolve_quality(scene.render, float(np.linalg.norm(hi - lo))))
+    records = scene_records(scene, quad, scene.render.shadow_map or SHADOW_MAP_RESOLUTION)
+    return pack_camera(scene, seed), records, quad
+
+
+def run_bands(kernel, window, width, progress):
+    """Call kernel(row0, p0, p1) over the tile ``window`` = ((r_lo, r_hi), (c_lo, c_hi)) of a frame
+    ``width`` pixels wide, in bands of rows on threads, with a progress bar."""
+    (r_lo, r_hi), (c_lo, c_hi) = window
     bar = _progress(r_hi - r_lo, progress)
     threads = numba.get_num_threads()
     rows = max(1, min(MAX_BAND_ROWS, -(-(r_hi - r_lo) // (BANDS_PER_THREAD * threads))))
@@ -108,9 +131,10 @@ def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=
     def band(rows):
         r0, r1 = rows
         # a whole row is one run of pixels; part of a row (a tile) takes one call per row
-        runs = [(r0, 0, (r1 - r0) * w)] if (c_lo, c_hi) == (0, w) else [(r, c_lo, c_hi) for r in range(r0, r1)]
+        runs = [(r0, 0, (r1 - r0) * width)] if (c_lo, c_hi) == (0, width) else [(r, c_lo, c_hi)
+                                                                                  for r in range(r0, r1)]
         for row0, p0, p1 in runs:
-            render_pixels(camera, records, quad, row0, p0, p1, image, nearest)
+            kernel(row0, p0, p1)
         return r1 - r0
 
     # each band is one call of a nogil kernel with its own work arrays, written to its own rows: threads
@@ -119,10 +143,6 @@ def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=
         for done in pool.map(band, bands):
             bar.update(done)
     bar.close()
-    image, nearest = image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi]
-    if depth:
-        return image.astype(np.float32), nearest.copy()
-    return image.astype(np.float32)
 
 
 def _window(span, size, name):
@@ -136,6 +156,16 @@ def _window(span, size, name):
     if not 0 <= start < stop <= size:
         raise InputError(f"{name}: expected (start, stop) with 0 <= start < stop <= {size}, got {span!r}")
     return start, stop
+
+
+def _multiple_scattering(scene):
+    """With ``render.scattering: multiple``, the hook that adds the Monte Carlo orders to the image
+    (cloudmeta.multiple), after checking the scene for it; None for single scattering."""
+    if scene.render.scattering != "multiple":
+        return None
+    from .multiple import add_multiple, check_multiple  # it imports this module
+    check_multiple(scene)
+    return add_multiple
 
 
 class _NoBar:

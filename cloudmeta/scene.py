@@ -28,6 +28,7 @@ from .errors import InputError, SceneError
 
 QUALITIES = ("draft", "default", "fine", "reference")
 SHADOW_MODES = ("exact", "map")
+SCATTERING_MODES = ("single", "multiple")
 DENSITY_MODES = ("field", "excess", "uniform")
 #: phase type -> its parameters (all required when the type is named)
 PHASE_PARAMS = {"isotropic": (), "hg": ("g",), "double_hg": ("g1", "g2", "w"), "rayleigh": ()}
@@ -118,6 +119,9 @@ class RenderSettings:
     shadows: str = "exact"
     shadow_map: int | None = None
     colourspace: str = DEFAULT_COLOURSPACE
+    scattering: str = "single"  #: single | multiple (README: multiple scattering)
+    max_order: int = 64         #: multiple: the highest scattering order
+    ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
 
 
 @dataclass(frozen=True)
@@ -662,7 +666,10 @@ def _render(top, overrides=None):
                                     *lim.ROOT_TOLERANCE_RANGE)),
         shadows=n.choice("shadows", SHADOW_MODES, "exact"),
         shadow_map=n.integer("shadow_map", None, **_int_range(2, lim.MAX_SHADOW_MAP)),
-        colourspace=colourspace)
+        colourspace=colourspace,
+        scattering=n.choice("scattering", SCATTERING_MODES, "single"),
+        max_order=n.integer("max_order", 64, **_int_range(1, lim.MAX_ORDER)),
+        ms_spp=n.integer("ms_spp", 16, **_int_range(1, lim.MAX_SPP)))
 
 
 EXPOSURE = dict(check=lambda v: abs(v) <= lim.MAX_EXPOSURE,

@@ -98,3 +98,7 @@ NodeWork = namedtuple("NodeWork", ["light", "pos", "l_dir", "x", "normal", "x_of
 #: everything one thread's camera rays reuse: SweepScratch (grows), RayPieces (grows), the BVH's
 #: candidate list and walk stack, NodeWork
 RayWork = namedtuple("RayWork", ["scratch", "pieces", "cand", "stack", "nodes"])
+
+#: the multiple-scattering paths (kernels.multiple): the highest scattering order, the vertex from which
+#: Russian roulette plays, and the paths per pixel
+PathSettings = namedtuple("PathSettings", ["max_order", "rr_order", "paths"])

@@ -1,0 +1,261 @@
+"""Multiple scattering: the orders >= 2 of the light sources, and every order of the environment, by Monte
+Carlo path tracing on the exact optical depth (README, "Multiple scattering").
+
+The deterministic single-scattering renderer (kernels.radiance) already gives order 1 of every light
+exactly; these paths add what it does not count:
+
+- Free flights are sampled by inverting the exact, piecewise-polynomial optical depth of the ray (no
+  majorant, no null collisions): the ray's media are cut into elementary intervals as for the camera
+  ray (radiance.elementary_intervals), the interval where the depth crosses the target is found, and the
+  degree-7 antiderivative is solved there (sampling.free_flight). Every flight is a *forced collision*:
+  the target is drawn inside the segment's optical depth U and the path weight is multiplied by
+  1 - e^-U, so no path is wasted on escaping.
+- The environment (the uniform background radiance) is estimated where a path would escape: after each
+  vertex, the background times the segment's transmittance e^-U (0 where the segment ends on an opaque
+  surface). This counts every order >= 1 of the environment; order 0 (the background seen straight
+  through) is the deterministic renderer's.
+- Next-event estimation towards every light at vertices 2, 3, ...: the exact shadow transmittance
+  (media.shadow_transmittance, blocked by any surface) times sum_m (sigma_s,m / sigma_t) p_m(l . d).
+  Vertex 1 gets none: that is single scattering, counted exactly already.
+- At a vertex the path weight takes sigma_s / sigma_t (all media); the medium whose phase function turns
+  the path is picked with probability sigma_s,m / sigma_s, and the new direction is drawn exactly from
+  that phase function, so the phase and its density cancel.
+- Russian roulette from vertex ``rr_order`` on (survival probability min(1, weight)); no vertex beyond
+  ``max_order``.
+- Opaque surfaces end a path (they are black to multiply scattered light; see README).
+
+Random numbers come from sampling.uniform keyed by (pixel, path, vertex, dimension): a pixel's result
+does not depend on any other pixel, nor on the threads.
+
+The scene is the records.SceneRecords that cloudmeta.render packs for the single-scattering renderer
+(one packing for both estimators), the quadrature record gives the root tolerance, and one thread's
+work arrays are the camera rays' records.RayWork: the stages of kernels.radiance (the first surface
+hit, the media on the ray, their elementary intervals, the light at a node with its shadow rays) are
+called as they are, not copied.
+"""
+import math
+
+import numpy as np
+from numba import njit
+
+from ..config import NJIT
+from .bernstein import bernstein_eval, bernstein_mean
+from .media import collect_media, n_media
+from .optics import phase
+from .radiance import alloc_ray_work, camera_ray, elementary_intervals, light_at_node, misses_bvh, surface_hit
+from .records import RayWork
+from .sampling import free_flight, sample_phase_cos, turn, uniform
+
+#: random dimensions of one vertex (the stream's last key)
+DIM_FLIGHT = 0
+DIM_MEDIUM = 1
+DIM_ROULETTE = 2
+DIM_LOBE = 3
+DIM_COS = 4
+DIM_PHI = 5
+#: a shadow ray stops once its optical depth passes this (T < 2e-22)
+TAU_STOP = 50.0
+
+
+@njit(**NJIT)
+def trace_segment(o, d, scene, tol_t, work):
+    """The media on o + t d up to the first opaque surface, as elementary intervals in work.pieces.
+    Returns (work, n_intervals, optical depth of the whole segment, whether it ends on a surface)."""
+    scratch, t_hit, s_hit = surface_hit(o, d, scene.surfaces, tol_t, work)
+    rp = work.pieces
+    n = 0
+    if t_hit > 0.0:
+        scratch, rp, n = collect_media(o, d, t_hit, scene.media, tol_t, scratch, rp, work.cand, work.stack)
+    work = RayWork(scratch, rp, work.cand, work.stack, work.nodes)
+    if n == 0:
+        return work, 0, 0.0, s_hit >= 0
+    n_el = elementary_intervals(n, rp)
+    return work, n_el, rp.el_u0[n_el], s_hit >= 0
+
+
+@njit(**NJIT)
+def locate_depth(target, n_el, rp):
+    """(interval k, s in [0, 1] on it, t) where the segment's optical depth reaches target (< its total)."""
+    el_t0, el_t1, el_u0 = rp.el_t0, rp.el_t1, rp.el_u0
+    lo = 0
+    hi = n_el - 1
+    while lo < hi:  # the last interval whose start depth is <= target
+        mid = (lo + hi + 1) // 2
+        if el_u0[mid] <= target:
+            lo = mid
+        else:
+            hi = mid - 1
+    k = lo
+    w = el_t1[k] - el_t0[k]
+    s = free_flight(rp.el_S[k], w, min(target - el_u0[k], el_u0[k + 1] - el_u0[k]))
+    return k, s, el_t0[k] + s * w
+
+
+@njit(**NJIT)
+def _sigma_at(rp, k, m, s, use_mean):
+    return bernstein_mean(rp.el_sig[k, m]) if use_mean else bernstein_eval(rp.el_sig[k, m], s)
+
+
+@njit(**NJIT)
+def scattering_mix(k, s, rp, med, u):
+    """At s on interval k: (sigma_s / sigma_t over all media, the medium picked with probability
+    sigma_s,m / sigma_s by u). Where sigma_t vanishes at the point itself (an `excess` edge, probability
+    zero), the interval's mean control values stand in."""
+    use_mean = False
+    sigma_t = 0.0
+    sigma_s = 0.0
+    for attempt in range(2):
+        use_mean = attempt == 1
+        sigma_t = 0.0
+        sigma_s = 0.0
+        for m in range(n_media(med)):
+            sig = _sigma_at(rp, k, m, s, use_mean)
+            sigma_t += sig
+            sigma_s += med.albedo[m] * sig
+        if sigma_t > 0.0:
+            break
+    if not (sigma_t > 0.0 and sigma_s > 0.0):
+        return 0.0, 0
+    pick = u * sigma_s
+    acc = 0.0
+    chosen = 0
+    for m in range(n_media(med)):
+        part = med.albedo[m] * _sigma_at(rp, k, m, s, use_mean)
+        if part > 0.0:
+            chosen = m
+            acc += part
+            if pick < acc:
+                break
+    return sigma_s / sigma_t, chosen
+
+
+@njit(**NJIT)
+def next_event(x, d, k, s, scene, tol_t, work, out):
+    """out[:3] += sum over lights of E_l T_l sum_m (sigma_s,m / sigma_t) p_m(l . d) at x (s on interval k
+    of work.pieces, the ray with direction d): the light scattered once more at x, with the shadow rays
+    of the single-scattering renderer (radiance.light_at_node). Returns work."""
+    med = scene.media
+    el_sig = work.pieces.el_sig
+    sigma_t = 0.0
+    sigma_s = 0.0
+    for m in range(n_media(med)):
+        sig = bernstein_eval(el_sig[k, m], s)
+        sigma_t += sig
+        sigma_s += med.albedo[m] * sig
+    if not (sigma_t > 0.0 and sigma_s > 0.0):
+        return work
+    scratch = light_at_node(x, x, d, False, TAU_STOP, scene, tol_t, work.scratch, work)
+    light = work.nodes.light
+    for m in range(n_media(med)):
+        ratio = med.albedo[m] * bernstein_eval(el_sig[k, m], s) / sigma_t
+        if ratio == 0.0:
+            continue
+        for li in range(light.shape[0]):
+            ph = phase(med.phase[m, 0], med.phase[m, 1], med.phase[m, 2], med.phase[m, 3], light[li, 0])
+            for c in range(3):
+                out[c] += ratio * ph * light[li, 1 + c]
+    return RayWork(scratch, work.pieces, work.cand, work.stack, work.nodes)
+
+
+@njit(**NJIT)
+def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, rows, out):
+    """out[:3] = one path's estimate of the radiance the deterministic renderer leaves out (orders >= 2
+    of the lights, orders >= 1 of the environment) along the camera ray o_cam + t d_cam.
+    key = (seed, pixel, path); settings a records.PathSettings; rows (4, 3) work vectors. Returns work,
+    grown if a ray needed more room."""
+    seed, pixel, path = key
+    max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
+    background = scene.background
+    o = rows[0]
+    d = rows[1]
+    d_new = rows[2]
+    light = rows[3]
+    for c in range(3):
+        o[c] = o_cam[c]
+        d[c] = d_cam[c]
+        out[c] = 0.0
+    has_env = background[0] > 0.0 or background[1] > 0.0 or background[2] > 0.0
+    weight = 1.0
+    for n_vert in range(max_order + 1):
+        if n_vert == max_order and not has_env:
+            break
+        work, n_el, u_total, on_surface = trace_segment(o, d, scene, tol_t, work)
+        if n_vert > 0 and has_env and not on_surface:
+            transmittance = math.exp(-u_total)
+            for c in range(3):
+                out[c] += weight * transmittance * background[c]  # the environment, order n_vert
+        if n_vert == max_order or n_el == 0:
+            break
+        # a forced collision inside the segment: the flight's target depth is drawn in [0, U)
+        xi = uniform(seed, pixel, path, n_vert, DIM_FLIGHT)
+        escape = -math.expm1(-u_total)
+        weight *= escape
+        k, s, t = locate_depth(-math.log1p(-xi * escape), n_el, work.pieces)
+        for c in range(3):
+            o[c] = o[c] + t * d[c]
+        if n_vert > 0:  # vertex 1 is single scattering: counted exactly by the deterministic renderer
+            light[:] = 0.0
+            work = next_event(o, d, k, s, scene, tol_t, work, light)
+            for c in range(3):
+                out[c] += weight * light[c]
+        ratio, m = scattering_mix(k, s, work.pieces, scene.media, uniform(seed, pixel, path, n_vert, DIM_MEDIUM))
+        weight *= ratio
+        if weight <= 0.0:
+            break
+        if n_vert + 1 >= rr_order:
+            survive = min(1.0, weight)
+            if uniform(seed, pixel, path, n_vert, DIM_ROULETTE) >= survive:
+                break
+            weight /= survive
+        ph = scene.media.phase[m]
+        cos_theta = sample_phase_cos(ph[0], ph[1], ph[2], ph[3], uniform(seed, pixel, path, n_vert, DIM_LOBE),
+                                     uniform(seed, pixel, path, n_vert, DIM_COS))
+        turn(d, cos_theta, uniform(seed, pixel, path, n_vert, DIM_PHI), d_new)
+        for c in range(3):
+            d[c] = d_new[c]
+    return work
+
+
+@njit(**NJIT)
+def _store_mean(acc, acc2, paths, i, j, mean, stderr):
+    """mean[i, j] and stderr[i, j] of ``paths`` estimates with sums acc and sums of squares acc2."""
+    for c in range(3):
+        mu = acc[c] / paths
+        mean[i, j, c] = mu
+        if paths > 1:
+            var = max(0.0, (acc2[c] - paths * mu * mu) / (paths - 1))
+            stderr[i, j, c] = math.sqrt(var / paths)
+        else:
+            stderr[i, j, c] = np.inf
+
+
+@njit(**NJIT)
+def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
+    """Pixels p0 .. p1 - 1 (row by row from the start of row row0): per pixel, the mean of
+    ``settings.paths`` path estimates into mean (H x W x 3), and its standard error into stderr. Path i
+    starts on camera ray i mod spp of the deterministic renderer (radiance.camera_ray), so the two add up
+    ray by ray. camera, scene, quad: the records of radiance.render_pixels. nogil, with its own work
+    arrays: cloudmeta.multiple runs bands of rows on several threads."""
+    width, spp, paths = camera.width, camera.spp, settings.paths
+    strata = int(math.ceil(math.sqrt(spp)))
+    work = alloc_ray_work(scene)
+    rows = np.empty((4, 3))
+    d = np.empty(3)
+    est = np.empty(3)
+    acc = np.empty(3)
+    acc2 = np.empty(3)
+    for p in range(p0, p1):
+        i = row0 + p // width
+        j = p % width
+        acc[:] = 0.0
+        acc2[:] = 0.0
+        for path in range(paths):
+            camera_ray(camera, i, j, path % spp, strata, d)
+            if misses_bvh(camera.position, d, scene.media.bvh):
+                continue  # no medium on the camera ray: nothing scatters, the estimate is 0
+            work = path_radiance(camera.position, d, (camera.seed, i * width + j, path), scene, quad, settings,
+                                 work, rows, est)
+            for c in range(3):
+                acc[c] += est[c]
+                acc2[c] += est[c] * est[c]
+        _store_mean(acc, acc2, paths, i, j, mean, stderr)

@@ -1,0 +1,121 @@
+"""Random numbers and the sampling routines of the multiple-scattering path tracer (kernels.multiple).
+
+- ``uniform``: a counter-based stream: the number for (seed, pixel, sample, order, dim) is a hash of
+  those integers alone (splitmix64's finaliser, chained), so a render does not depend on the order in
+  which threads take pixels, nor on their number.
+- ``sample_phase_cos``: cos theta of a new direction drawn exactly from each phase function of MODEL.md §4
+  (HG by inversion of its CDF, double HG by its lobe, Rayleigh by the real root of its CDF's cubic,
+  isotropic), with cos theta = d' . d, d the incoming propagation direction (so g > 0 keeps going forward).
+- ``free_flight``: the distance at which the exact optical depth of a Bernstein piece reaches a target
+  (Newton on the exact antiderivative, kept in a bisection bracket).
+"""
+import math
+
+import numpy as np
+from numba import njit
+
+from ..config import NJIT, NJIT_INLINE
+from .bernstein import bernstein_cumulative, bernstein_eval
+from .optics import DOUBLE_HG, HG, RAYLEIGH
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+#: below this |g| the HG inversion loses digits (it divides by g): sample isotropically, the difference
+#: in the phase function is below 3|g|
+_G_ISOTROPIC = 1e-6
+
+
+@njit(**NJIT_INLINE)
+def _finalise(z):
+    """splitmix64's finaliser (a bijection of 64-bit integers with full avalanche)."""
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(**NJIT)
+def uniform(seed, pixel, sample, order, dim):
+    """A number in [0, 1) that depends only on (seed, pixel, sample, order, dim): each integer is folded
+    into the state through a full mixing round, so neighbouring counters give unrelated numbers."""
+    z = _finalise(np.uint64(seed) * _GOLDEN + np.uint64(pixel))
+    z = _finalise(z + np.uint64(sample) * _GOLDEN)
+    z = _finalise(z + np.uint64(order) * _GOLDEN)
+    z = _finalise(z + np.uint64(dim) * _GOLDEN + np.uint64(1))
+    return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(**NJIT)
+def sample_hg_cos(g, u):
+    """cos theta with density HG(g) in cos theta: the inverse of its CDF."""
+    if abs(g) < _G_ISOTROPIC:
+        return 1.0 - 2.0 * u
+    q = (1.0 - g * g) / (1.0 - g + 2.0 * g * u)
+    return min(1.0, max(-1.0, (1.0 + g * g - q * q) / (2.0 * g)))
+
+
+@njit(**NJIT)
+def sample_rayleigh_cos(u):
+    """cos theta with density 3/8 (1 + mu^2): the real root of mu^3 + 3 mu + 4 - 8u = 0 (Cardano; the
+    discriminant is positive, one real root): mu = A - 1/A, A = cbrt(4u - 2 + sqrt((4u - 2)^2 + 1))."""
+    a = 4.0 * u - 2.0
+    big = (a + math.sqrt(a * a + 1.0)) ** (1.0 / 3.0)
+    return min(1.0, max(-1.0, big - 1.0 / big))
+
+
+@njit(**NJIT)
+def sample_phase_cos(kind, g1, g2, w, u_lobe, u):
+    """cos theta drawn from the phase function (kind, g1, g2, w) as packed by the renderer; u_lobe picks
+    the lobe of a double HG (probability w for g1)."""
+    if kind == HG:
+        return sample_hg_cos(g1, u)
+    if kind == DOUBLE_HG:
+        return sample_hg_cos(g1 if u_lobe < w else g2, u)
+    if kind == RAYLEIGH:
+        return sample_rayleigh_cos(u)
+    return 1.0 - 2.0 * u
+
+
+@njit(**NJIT)
+def turn(d, cos_theta, u_phi, out):
+    """out = the unit direction at angle theta from the unit vector d, azimuth 2 pi u_phi about it (an
+    orthonormal frame after Duff et al. 2017, branch-free but for the sign)."""
+    sign = 1.0 if d[2] >= 0.0 else -1.0
+    a = -1.0 / (sign + d[2])
+    b = d[0] * d[1] * a
+    t0, t1, t2 = 1.0 + sign * d[0] * d[0] * a, sign * b, -sign * d[0]
+    b0, b1, b2 = b, sign + d[1] * d[1] * a, -d[1]
+    sin_theta = math.sqrt(max(0.0, 1.0 - cos_theta * cos_theta))
+    phi = 2.0 * math.pi * u_phi
+    x = sin_theta * math.cos(phi)
+    y = sin_theta * math.sin(phi)
+    out[0] = x * t0 + y * b0 + cos_theta * d[0]
+    out[1] = x * t1 + y * b1 + cos_theta * d[1]
+    out[2] = x * t2 + y * b2 + cos_theta * d[2]
+    norm = math.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2])
+    for c in range(3):
+        out[c] /= norm
+
+
+@njit(**NJIT)
+def free_flight(S, w, target):
+    """s in [0, 1] where w * integral_0^s S (the optical depth across a piece of length w whose sigma_t
+    has Bernstein control values S) reaches target, 0 <= target <= w * mean(S). The depth is monotone
+    (sigma_t >= 0 inside), so Newton steps are kept inside a shrinking bisection bracket: every step
+    either converges quadratically or halves the bracket."""
+    lo = 0.0
+    hi = 1.0
+    total = w * bernstein_cumulative(S, 1.0)
+    s = target / total if total > 0.0 else 0.5  # the root for a constant sigma_t
+    for _ in range(100):
+        f = w * bernstein_cumulative(S, s) - target
+        if f < 0.0:
+            lo = s
+        else:
+            hi = s
+        slope = w * bernstein_eval(S, s)
+        sn = s - f / slope if slope > 0.0 else 0.5 * (lo + hi)
+        if not (lo <= sn <= hi):
+            sn = 0.5 * (lo + hi)
+        if abs(sn - s) <= 1e-15 or hi - lo <= 1e-15:
+            return min(max(sn, 0.0), 1.0)
+        s = sn
+    return s

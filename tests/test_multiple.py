@@ -1,0 +1,246 @@
+"""Multiple scattering (cloudmeta.multiple, kernels.multiple, kernels.sampling): the sampling routines
+against their densities, the white furnace, max_order 1, determinism across threads, the scene keys."""
+from dataclasses import replace
+
+import numba
+import numpy as np
+import pytest
+
+import cloudmeta as cm
+from cloudmeta.errors import SceneError
+from cloudmeta.kernels.bernstein import bernstein_cumulative
+from cloudmeta.kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH, phase
+from cloudmeta.kernels.sampling import free_flight, sample_phase_cos, turn, uniform
+from cloudmeta.multiple import render_multiple
+
+FURNACE = """
+image: {width: 8, height: 8, spp: 1}
+camera: {position: [0, -8, 0], look_at: [0, 0, 0], up: [0, 0, 1], fov: 20}
+background: [0.5, 0.7, 1.0]
+media:
+  - name: puff
+    kernel: wyvill6
+    threshold: 0.3
+    density: {mode: field, scale: 4.0}
+    albedo: 1.0
+    phase: {type: hg, g: 0.6}
+    balls:
+      - {center: [0, 0, 0], radius: 1.5, weight: 1.0}
+      - {center: [0.8, 0.3, 0.4], radius: 1.0, weight: 0.8}
+render: {scattering: multiple, max_order: 100000, ms_spp: 1024}
+"""
+
+LIT = """
+image: {width: 6, height: 6, spp: 1}
+camera: {position: [0, -8, 0], look_at: [0, 0, 0], up: [0, 0, 1], fov: 30}
+lights:
+  - {type: directional, direction: [0.3, -0.5, 0.8], irradiance: 3.0}
+  - {type: point, position: [2, -2, 3], intensity: 10.0}
+media:
+  - name: puff
+    kernel: wyvill6
+    threshold: 0.3
+    density: {mode: field, scale: 3.0}
+    albedo: 0.9
+    phase: {type: double_hg, g1: 0.7, g2: -0.3, w: 0.8}
+    balls:
+      - {center: [0, 0, 0], radius: 1.5, weight: 1.0}
+  - name: haze
+    kernel: murakami4
+    threshold: 0.2
+    density: {mode: uniform, scale: 0.5}
+    albedo: 1.0
+    phase: {type: rayleigh}
+    balls:
+      - {center: [0.5, 0, 0.5], radius: 1.2, weight: 1.0}
+surfaces:
+  - {name: ground, kernel: wyvill6, threshold: 0.5, color: [0.6, 0.6, 0.6],
+     balls: [{center: [0, 0, -6], radius: 5.0, weight: 1.0}]}
+render: {scattering: multiple, max_order: 16, ms_spp: 8}
+"""
+
+
+def _scene(tmp_path, text, name="scene.yaml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return cm.load_scene(path)
+
+
+# ------------------------------------------------------------------------------------------ sampling
+
+def _moments(kind, g1=0.0, g2=0.0, w=1.0, n=20000):
+    """E[cos] and E[cos^2] of the sampler on a stratified grid of u (the lobe picked by a second grid)."""
+    u = (np.arange(n) + 0.5) / n
+    lobe = ((np.arange(n) * 7919) % n + 0.5) / n
+    mu = np.array([sample_phase_cos(kind, g1, g2, w, a, b) for a, b in zip(lobe, u)])
+    return mu.mean(), (mu * mu).mean()
+
+
+def _phase_moments(kind, g1=0.0, g2=0.0, w=1.0):
+    """The same moments of the phase function itself, integrated over the sphere (2 pi d mu)."""
+    x, wt = np.polynomial.legendre.leggauss(400)
+    p = np.array([phase(kind, g1, g2, w, m) for m in x]) * 2 * np.pi
+    return (wt * p).sum(), (wt * p * x).sum(), (wt * p * x * x).sum()
+
+
+@pytest.mark.parametrize("kind,g1,g2,w", [(ISOTROPIC, 0, 0, 1), (HG, 0.6, 0, 1), (HG, -0.3, 0, 1), (HG, 0.95, 0, 1),
+                                          (DOUBLE_HG, 0.8, -0.4, 0.7), (RAYLEIGH, 0, 0, 1)])
+def test_phase_sampling_matches_the_phase_function(kind, g1, g2, w):
+    m1, m2 = _moments(kind, g1, g2, w)
+    norm, p1, p2 = _phase_moments(kind, g1, g2, w)
+    assert norm == pytest.approx(1.0, abs=1e-6)
+    assert m1 == pytest.approx(p1, abs=2e-3)
+    assert m2 == pytest.approx(p2, abs=2e-3)
+
+
+def test_phase_sampling_histogram_hg():
+    """The sampled cos theta of HG(0.7) in 20 bins against the CDF of the phase function."""
+    g = 0.7
+    n = 40000
+    rng = np.random.default_rng(1)
+    mu = np.array([sample_phase_cos(HG, g, 0.0, 1.0, 0.0, u) for u in rng.random(n)])
+    edges = np.linspace(-1, 1, 21)
+    counts, _ = np.histogram(mu, edges)
+    x, wt = np.polynomial.legendre.leggauss(64)
+    expected = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        m = 0.5 * (a + b) + 0.5 * (b - a) * x
+        expected.append(0.5 * (b - a) * (wt * np.array([phase(HG, g, 0, 1, v) for v in m])).sum() * 2 * np.pi)
+    expected = n * np.array(expected)
+    chi2 = ((counts - expected) ** 2 / expected).sum()
+    assert chi2 < 45  # 19 degrees of freedom: p ~ 1e-3
+
+
+def test_turn_keeps_the_angle_and_unit_length():
+    rng = np.random.default_rng(2)
+    out = np.empty(3)
+    for _ in range(200):
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        cos_t = rng.uniform(-1, 1)
+        turn(d, cos_t, rng.random(), out)
+        assert np.linalg.norm(out) == pytest.approx(1.0, abs=1e-12)
+        assert out @ d == pytest.approx(cos_t, abs=1e-10)
+    turn(np.array([0.0, 0.0, -1.0]), 0.3, 0.2, out)  # the frame's singular side
+    assert out @ np.array([0.0, 0.0, -1.0]) == pytest.approx(0.3, abs=1e-12)
+
+
+def test_free_flight_inverts_the_exact_optical_depth():
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        c = rng.uniform(0.0, 3.0, 7)
+        if rng.random() < 0.3:
+            c[rng.integers(7)] = 0.0  # zero density at an end or inside: still monotone
+        w = rng.uniform(0.01, 5.0)
+        total = w * bernstein_cumulative(c, 1.0)
+        for frac in (0.0, 1e-9, rng.random(), 1.0 - 1e-9, 1.0):
+            target = frac * total
+            s = free_flight(c, w, target)
+            assert 0.0 <= s <= 1.0
+            assert w * bernstein_cumulative(c, s) == pytest.approx(target, abs=1e-12 * max(total, 1))
+
+
+def test_uniform_stream_is_keyed_and_uniform():
+    a = uniform(0, 5, 3, 2, 1)
+    assert a == uniform(0, 5, 3, 2, 1)
+    keys = [(0, 5, 3, 2, 2), (0, 5, 3, 3, 1), (0, 5, 4, 2, 1), (0, 6, 3, 2, 1), (1, 5, 3, 2, 1)]
+    assert all(uniform(*k) != a for k in keys)
+    x = np.array([uniform(0, p, s, 0, 0) for p in range(100) for s in range(100)])
+    assert x.min() >= 0.0 and x.max() < 1.0
+    assert x.mean() == pytest.approx(0.5, abs=0.01)
+    assert np.corrcoef(x[:-1], x[1:])[0, 1] == pytest.approx(0.0, abs=0.03)
+
+
+# ------------------------------------------------------------------------------------------ renders
+
+def test_white_furnace(tmp_path):
+    """Albedo 1, heterogeneous density, a uniform environment, no lights: every pixel shows exactly the
+    environment, within the estimate's own standard error."""
+    scene = _scene(tmp_path, FURNACE)
+    image = cm.render(scene, progress=False).astype(np.float64)
+    _, err = render_multiple(scene)
+    bg = np.array(scene.background)
+    inside = err[..., 0] > 0  # the pixels whose camera ray meets the medium
+    assert inside.sum() >= 16
+    mean = image[..., :3][inside].mean(axis=0)
+    assert np.all(np.abs(mean / bg - 1.0) < 0.01)
+    z = (image[..., :3][inside] - bg) / err[inside]
+    assert np.mean(np.abs(z) < 3.0) >= 0.97
+    assert np.abs(z).max() < 5.0
+    outside = image[..., :3][~inside]  # the camera ray misses the medium: the background, exactly (float32)
+    np.testing.assert_array_equal(outside, np.broadcast_to(bg.astype(np.float32), outside.shape))
+
+
+def test_max_order_one_is_single_scattering(tmp_path):
+    """Without an environment the Monte Carlo part of max_order 1 is exactly zero: the image is the
+    single-scattering image bit for bit."""
+    scene = _scene(tmp_path, LIT)
+    single = cm.render(replace(scene, render=replace(scene.render, scattering="single")), progress=False)
+    one = replace(scene, render=replace(scene.render, max_order=1))
+    mean, err = render_multiple(one)
+    assert np.all(mean == 0.0) and np.all(err == 0.0)
+    np.testing.assert_array_equal(cm.render(one, progress=False), single)
+    multiple = cm.render(scene, progress=False)
+    assert np.all(multiple[..., :3] >= single[..., :3])
+    assert multiple[..., :3].sum() > single[..., :3].sum() * 1.01  # orders >= 2 add light
+
+
+def test_bit_identical_across_threads(tmp_path):
+    scene = _scene(tmp_path, LIT)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = render_multiple(scene, seed=3)
+        numba.set_num_threads(max(2, before))
+        many = render_multiple(scene, seed=3)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(one[0], many[0])
+    np.testing.assert_array_equal(one[1], many[1])
+    other = render_multiple(scene, seed=4)
+    assert not np.array_equal(one[0], other[0])
+
+
+def test_scene_keys(tmp_path):
+    scene = _scene(tmp_path, LIT)
+    assert (scene.render.scattering, scene.render.max_order, scene.render.ms_spp) == ("multiple", 16, 8)
+    plain = _scene(tmp_path, LIT.replace("render: {scattering: multiple, max_order: 16, ms_spp: 8}", ""), "p.yaml")
+    assert (plain.render.scattering, plain.render.max_order, plain.render.ms_spp) == ("single", 64, 16)
+    for bad, key in (("scattering: many", "render.scattering"), ("max_order: 0", "render.max_order"),
+                     ("ms_spp: 1.5", "render.ms_spp")):
+        text = LIT.replace("render: {scattering: multiple, max_order: 16, ms_spp: 8}", f"render: {{{bad}}}")
+        with pytest.raises(SceneError, match=key):
+            _scene(tmp_path, text, "bad.yaml")
+
+
+def test_ambient_is_refused_in_multiple_mode(tmp_path):
+    scene = _scene(tmp_path, "ambient: [0.1, 0.1, 0.1]\n" + LIT)
+    with pytest.raises(SceneError, match="ambient"):
+        cm.render(scene, progress=False)
+    with pytest.raises(SceneError, match="ambient"):
+        render_multiple(scene)
+
+
+def test_slab_against_adding_doubling(tmp_path):
+    """One slab case of validation/multiple_scattering.py (tau 2, albedo 0.8, g 0; reflected and
+    transmitted radiance at nu ~ 0.6) within 1 % or 3 standard errors of iadpython."""
+    pytest.importorskip("iadpython")  # a validation-only dependency (the dev extra)
+    from validation import multiple_scattering as ms
+    rows = ms.slab(tmp_path, quick=True)
+    assert len(rows) == 2
+    for r in rows:
+        assert abs(r["rel"]) < 0.01 or abs(r["z"]) < 3, r
+        assert abs(r["rel"]) < 0.03, r
+
+
+def test_tile_equals_the_same_pixels_of_the_frame(tmp_path):
+    """rows / columns: the Monte Carlo part of a tile is the same pixels of the whole frame (the random
+    stream is keyed by the pixel), and so is the rendered tile."""
+    scene = _scene(tmp_path, LIT)
+    mean, err = render_multiple(scene, seed=2)
+    tile, tile_err = render_multiple(scene, seed=2, rows=(1, 4), columns=(2, 5))
+    np.testing.assert_array_equal(tile, mean[1:4, 2:5])
+    np.testing.assert_array_equal(tile_err, err[1:4, 2:5])
+    whole = cm.render(scene, progress=False, seed=2)
+    np.testing.assert_array_equal(cm.render(scene, progress=False, seed=2, rows=(1, 4), columns=(2, 5)),
+                                  whole[1:4, 2:5])
