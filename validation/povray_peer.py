@@ -47,7 +47,7 @@ if __package__ in (None, ""):
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-PEERS = Path(os.environ.get("CLOUDMETA_POVRAY_PEERS", "/work/shared/peers/povray"))
+PEERS = Path(os.environ.get("CLOUDMETA_POVRAY_PEERS", ROOT.parent / "shared" / "peers" / "povray"))  # shared/ beside the checkout
 if not PEERS.is_dir():
     PEERS = ROOT / "validation" / "peers" / "povray"
 SCENES = ("b94", "b890", "b1630")
