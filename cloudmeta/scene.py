@@ -792,6 +792,8 @@ def _read_yaml(ctx):
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
+        if "maximum nesting depth" in problem:  # PyYAML >= 6.0.4's own limit (1000) can come before ours
+            problem = f"lists and mappings nested more than {lim.MAX_YAML_DEPTH} deep"
         ctx.fail(None, f"invalid YAML{at}: {problem}")
     except (ValueError, OverflowError, RecursionError, MemoryError) as exc:
         if "digits" in str(exc):  # Python refuses to convert an integer of more than 4300 digits
