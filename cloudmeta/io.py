@@ -18,6 +18,20 @@ from .errors import InputError, OutputError
 from .limits import MAX_EXPOSURE
 
 _CHANNELS = "RGBA"
+#: the process's umask, read once at import (reading it means setting it): outputs get the permissions an
+#: ordinary open() would give them, not mkstemp's 0600
+_UMASK = os.umask(0o022)
+os.umask(_UMASK)
+
+
+def _temporary(folder, name):
+    """A new empty file beside ``name`` in ``folder`` (same extension), with ordinary permissions."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-", suffix=os.path.splitext(name)[1], dir=folder)
+    try:
+        os.fchmod(fd, 0o666 & ~_UMASK)
+    finally:
+        os.close(fd)
+    return tmp
 
 
 @contextlib.contextmanager
@@ -30,9 +44,7 @@ def atomic_output(path):
     """
     path = os.fspath(path)
     folder, name = os.path.split(os.path.abspath(path))
-    ext = os.path.splitext(name)[1]
-    fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-", suffix=ext, dir=folder)
-    os.close(fd)
+    tmp = _temporary(folder, name)
     try:
         yield tmp
         os.replace(tmp, path)
@@ -55,10 +67,9 @@ def atomic_outputs(paths):
         for path in paths:
             folder, name = os.path.split(path)
             try:
-                fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-", suffix=os.path.splitext(name)[1], dir=folder)
+                tmp = _temporary(folder, name)
             except OSError as exc:
                 raise OutputError(f"{path}: cannot create a file in {folder}: {exc.strerror or exc}") from None
-            os.close(fd)
             tmps.append(tmp)
         yield list(tmps)
         _commit(paths, tmps)

@@ -161,3 +161,14 @@ def test_png_exposure_is_bounded(tmp_path):
     with pytest.raises(InputError, match="exposure"):
         write_png(np.zeros((2, 2, 3)), tmp_path / "a.png", exposure=2000)
     assert not list(tmp_path.iterdir())
+
+
+def test_outputs_get_ordinary_permissions_not_mkstemps(tmp_path):
+    from cloudmeta.io import _UMASK, atomic_output, atomic_outputs
+    with atomic_output(tmp_path / "a.exr") as tmp:
+        open(tmp, "wb").close()
+    with atomic_outputs([tmp_path / "b.exr", tmp_path / "b.png"]) as tmps:
+        for t in tmps:
+            open(t, "wb").close()
+    for name in ("a.exr", "b.exr", "b.png"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~_UMASK
