@@ -58,6 +58,7 @@ from .bvh import STACK, ray_box
 from .media import alloc_ray_pieces, collect_media, n_media, shadow_transmittance
 from .optics import phase
 from .records import NodeWork, RayWork
+from .sampling import mix64
 from .shadowmap import map_optical_depth
 from .surfaces import SHADOW_OFFSET, first_surface_hit, n_surfaces, surface_normal, surfaces_block
 from .sweep import advance_active, alloc_scratch, sort_breakpoints
@@ -535,18 +536,11 @@ def single_scattering(o, d, scene, quad, work, out):
 
 
 @njit(**NJIT)
-def _mix64(z):
-    """splitmix64's finaliser: a counter-based hash, so jitter depends only on (pixel, sample)."""
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return z ^ (z >> np.uint64(31))
-
-
-@njit(**NJIT)
 def jitter(seed, pixel, sample, dim):
     key = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(pixel) * np.uint64(0x632BE59BD9B4E019)
            + np.uint64(sample) * np.uint64(0x85EBCA77C2B2AE63) + np.uint64(dim))
-    return float(_mix64(key) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    # a counter-based hash, so jitter depends only on (pixel, sample)
+    return float(mix64(key) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
 @njit(**NJIT)

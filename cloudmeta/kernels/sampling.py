@@ -25,7 +25,7 @@ _G_ISOTROPIC = 1e-6
 
 
 @njit(**NJIT_INLINE)
-def _finalise(z):
+def mix64(z):
     """splitmix64's finaliser (a bijection of 64-bit integers with full avalanche)."""
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
@@ -36,10 +36,10 @@ def _finalise(z):
 def uniform(seed, pixel, sample, order, dim):
     """A number in [0, 1) that depends only on (seed, pixel, sample, order, dim): each integer is folded
     into the state through a full mixing round, so neighbouring counters give unrelated numbers."""
-    z = _finalise(np.uint64(seed) * _GOLDEN + np.uint64(pixel))
-    z = _finalise(z + np.uint64(sample) * _GOLDEN)
-    z = _finalise(z + np.uint64(order) * _GOLDEN)
-    z = _finalise(z + np.uint64(dim) * _GOLDEN + np.uint64(1))
+    z = mix64(np.uint64(seed) * _GOLDEN + np.uint64(pixel))
+    z = mix64(z + np.uint64(sample) * _GOLDEN)
+    z = mix64(z + np.uint64(order) * _GOLDEN)
+    z = mix64(z + np.uint64(dim) * _GOLDEN + np.uint64(1))
     return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
