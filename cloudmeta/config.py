@@ -110,6 +110,9 @@ NJIT = dict(cache=CACHE, fastmath=FASTMATH, nogil=True, error_model="numpy")
 NJIT_INLINE = dict(NJIT, inline="always")
 #: flags for the few kernels that loop over rays or points with prange (the public ray API, the grid)
 NJIT_PARALLEL = dict(NJIT, parallel=True)
+#: options of the @overload helpers that pick an implementation by an argument's type (kernels.features);
+#: inlined into their callers, so they compile with them and are cached with them
+OVERLOAD = dict(jit_options=dict(fastmath=FASTMATH, error_model="numpy"), inline="always")
 
 
 def is_compiled(dispatcher):

@@ -4,7 +4,8 @@ One job per function: the media, the surfaces and the lights into their records 
 merged into one); the shadow maps of directional lights (traced once, traced again where the single
 pass overflows); the camera's basis; and the G7-K15 quadrature rule with its Lagrange bases. Every array
 is fresh, writable and C-contiguous with a fixed dtype, also when a scene has no media, surfaces or
-lights: numba then sees the same types and compiles once.
+lights: numba then sees the same types and compiles once. A scene with neither surfaces nor shadow maps
+gets None for both (kernels.features): the kernels then compile a second, smaller version without them.
 """
 from __future__ import annotations
 
@@ -114,8 +115,14 @@ def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
         maps = build_shadow_maps(scene.lights, med, lo, hi, shadow_map_resolution, quad.tol_t)
     # fresh writable copies: numba types read-only arrays apart, and a second type means a second compile
     ambient = np.zeros(3) if scene.ambient is None else np.array(scene.ambient, np.float64)
-    return SceneRecords(med, pack_surfaces(scene.surfaces), pack_lights(scene.lights, maps),
-                        np.array(scene.background, np.float64), ambient)
+    if not scene.surfaces and maps is None:
+        # neither surfaces nor shadow maps: None in their places, so that the kernels compile without
+        # their code (kernels.features); a scene with either gets both records, so that every kernel has
+        # at most two compiled versions
+        surfaces, lights = None, Lights(*pack_lights(scene.lights)[:3], None)
+    else:
+        surfaces, lights = pack_surfaces(scene.surfaces), pack_lights(scene.lights, maps)
+    return SceneRecords(med, surfaces, lights, np.array(scene.background, np.float64), ambient)
 
 
 # --- shadow maps ------------------------------------------------------------------------------------------

@@ -41,20 +41,33 @@ def _arrays(record):
 
 @pytest.mark.parametrize("scene", ["scenes/two_media.yaml", "docs/surfaces.yaml", "scenes/single_ball.yaml"])
 @pytest.mark.parametrize("shadows", ["exact", "map"])
-def test_scene_records_have_one_type_whatever_the_scene(scene, shadows):
+def test_scene_records_have_two_types_whatever_the_scene(scene, shadows):
     """Fresh, writable, C-contiguous arrays of fixed dtypes and ranks, with or without surfaces, media
-    and maps: numba sees one type per record and compiles once."""
+    and maps; and one of two types: None for the surfaces and the maps where a scene has neither (the
+    kernels compile without their code), both records otherwise. numba compiles at most two versions."""
     from dataclasses import replace
     s = load_scene(ROOT / scene, width=4, height=4)
     s = replace(s, render=replace(s.render, shadows=shadows))
     quad = pack.quadrature(pack_quality())
     rec = pack.scene_records(s, quad, 8)
-    ref = pack.scene_records(load_scene(ROOT / "scenes" / "single_ball.yaml", width=4, height=4), quad, 8)
-    for a, b in zip(_arrays(rec), _arrays(ref)):
+    full = pack.scene_records(load_scene(ROOT / "docs" / "surfaces.yaml", width=4, height=4), quad, 8)
+    lean = pack.scene_records(load_scene(ROOT / "scenes" / "single_ball.yaml", width=4, height=4), quad, 8)
+    has_maps = shadows == "map" and bool(s.media)
+    if s.surfaces or has_maps:
+        assert rec.surfaces is not None and rec.lights.maps is not None
+        assert rec.surfaces.start[-1] == len(rec.surfaces.centers)
+        assert len(rec.lights.maps.map_of) == len(s.lights)
+        assert (rec.lights.maps.map_of >= 0).any() == has_maps
+        ref = full
+    else:
+        assert rec.surfaces is None and rec.lights.maps is None
+        ref = lean
+    arrays, ref_arrays = list(_arrays(rec)), list(_arrays(ref))
+    assert len(arrays) == len(ref_arrays)
+    for a, b in zip(arrays, ref_arrays):
         assert a.flags.c_contiguous and a.flags.writeable
         assert (a.dtype, a.ndim) == (b.dtype, b.ndim)
-    assert rec.media.start[-1] == len(rec.media.centers) and rec.surfaces.start[-1] == len(rec.surfaces.centers)
-    assert len(rec.lights.maps.map_of) == len(s.lights)
+    assert rec.media.start[-1] == len(rec.media.centers)
 
 
 def pack_quality():

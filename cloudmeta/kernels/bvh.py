@@ -175,3 +175,15 @@ def bvh_point_candidates(x, bvh, root, stack, cand):
     The walk of a ray from x along (1, 1, 1) over t in [0, 0]: the slab test then reduces to
     lo - x <= 0 <= hi - x on every axis, exact in floating point."""
     return _walk(x, 1.0, 1.0, 1.0, 0.0, 0.0, bvh, root, stack, cand)
+
+
+@njit(**NJIT_INLINE)
+def misses_root_boxes(o, d, bvh):
+    """Whether the ray misses the root box of every blob of a records.BVH."""
+    ix = 1.0 / d[0] if d[0] != 0.0 else np.inf
+    iy = 1.0 / d[1] if d[1] != 0.0 else np.inf
+    iz = 1.0 / d[2] if d[2] != 0.0 else np.inf
+    for m in range(bvh.root.shape[0]):
+        if ray_box(o[0], o[1], o[2], ix, iy, iz, bvh.node_box, bvh.root[m], 0.0, np.inf):
+            return False
+    return True

@@ -42,7 +42,9 @@ from ..config import NJIT
 from .bernstein import bernstein_eval, bernstein_mean
 from .media import collect_media, n_media
 from .optics import phase
-from .radiance import alloc_ray_work, camera_ray, elementary_intervals, light_at_node, misses_bvh, surface_hit
+from .bvh import misses_root_boxes
+from .features import surface_hit
+from .radiance import alloc_ray_work, camera_ray, elementary_intervals, light_at_node
 from .records import RayWork
 from .sampling import free_flight, sample_phase_cos, turn, uniform
 
@@ -251,7 +253,7 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
         acc2[:] = 0.0
         for path in range(paths):
             camera_ray(camera, i, j, path % spp, strata, d)
-            if misses_bvh(camera.position, d, scene.media.bvh):
+            if misses_root_boxes(camera.position, d, scene.media.bvh):
                 continue  # no medium on the camera ray: nothing scatters, the estimate is 0
             work = path_radiance(camera.position, d, (camera.seed, i * width + j, path), scene, quad, settings,
                                  work, rows, est)

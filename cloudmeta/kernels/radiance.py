@@ -45,22 +45,31 @@ records, remains per node. The estimator's stages with one caller each (``single
 ``render_pixels`` too, for compile time: numba links every separately compiled callee into its caller's
 module and optimises and generates machine code for the whole module again, so each level of the call
 chain above the shadow-ray and sweep code compiled all of that code once more (cumulus cold compile,
-process CPU: 375 s with the stages separate, 300 s inlined; docs/performance_notes.md §2b).
+process CPU: 375 s with the stages separate, 300 s inlined; docs/performance_notes.md §2b). The
+quadrature's loops carry only the sweep scratch (which a shadow ray may grow), not the whole RayWork:
+every record a loop carries becomes LLVM phi nodes for each field of each of its arrays, and carrying
+the 44 arrays of RayWork through three nested loops cost 40 s of compile (§2c).
+
+What a scene lacks is not compiled: a scene with neither surfaces nor shadow maps has None in their
+places, and the helpers of kernels.features (and ``surface_radiance`` here) compile to their trivial
+case for it.
 """
 import math
 
 import numpy as np
 from numba import njit
+from numba.core import types
+from numba.extending import overload
 
-from ..config import NJIT, NJIT_INLINE
+from ..config import NJIT, NJIT_INLINE, OVERLOAD
 from .bernstein import NCOEF, bernstein_cumulative, bernstein_eval, bernstein_mean, subdivide
-from .bvh import STACK, ray_box
+from .bvh import STACK, misses_root_boxes
+from .features import light_map, map_transmittance, misses_surfaces, surface_balls, surface_hit, surfaces_blocking
 from .media import alloc_ray_pieces, collect_media, n_media, shadow_transmittance
 from .optics import phase
 from .records import NodeWork, RayWork
 from .sampling import mix64
-from .shadowmap import map_optical_depth
-from .surfaces import SHADOW_OFFSET, first_surface_hit, n_surfaces, surface_normal, surfaces_block
+from .surfaces import SHADOW_OFFSET, surface_normal
 from .sweep import advance_active, alloc_scratch, sort_breakpoints
 
 DIRECTIONAL = 0
@@ -179,14 +188,12 @@ def light_at_node(pos, shadow_from, v, facing_only, tau_stop, scene, tol_t, scra
             for c in range(3):
                 light_buf[li, 1 + c] = 0.0
             continue
-        blocked = False
-        if n_surfaces(surf) > 0:
-            scratch, blocked = surfaces_block(shadow_from, l_dir, l_max, surf, tol_t, scratch, work.cand, work.stack)
-        mi = lights.maps.map_of[li]
+        scratch, blocked = surfaces_blocking(shadow_from, l_dir, l_max, surf, tol_t, scratch, work)
+        mi = light_map(lights.maps, li)
         if blocked:
             t_l = 0.0
         elif mi >= 0:
-            t_l = math.exp(-map_optical_depth(shadow_from, lights.maps, mi))
+            t_l = map_transmittance(shadow_from, lights.maps, mi)
         else:
             scratch, t_l = shadow_transmittance(shadow_from, l_dir, l_max, scene.media, tol_t, tau_stop, scratch,
                                                 work.cand, work.stack)
@@ -299,8 +306,7 @@ def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
     (at most MAX_SPLITS times), left half first, so that the nodes come in increasing u. Parts seen
     through less than ``cutoff`` are dropped. state = (k, s_prev, u_prev, j_max): source_at's cursor and
     the largest J (r + g + b) met on this ray, the scale of the tolerance. Returns (work, state)."""
-    k, s_prev, u_prev, j_max = state
-    scratch = work.scratch
+    k, s_prev, u_prev, j_max, scratch = state
     nodes = work.nodes
     node_w, j_val, split_u, split_depth = nodes.node_w, nodes.j_val, nodes.split_u, nodes.split_depth
     gauss_col, kronrod_col, kronrod_x, tail = quad.gauss_col, quad.kronrod_col, quad.kronrod_x, quad.tail
@@ -361,7 +367,7 @@ def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
         for g in range(kronrod_x.shape[0]):
             for c in range(3):
                 out[c] += e0 * node_w[g] * j_val[c, g]
-    return RayWork(scratch, work.pieces, work.cand, work.stack, nodes), (k, s_prev, u_prev, j_max)
+    return (k, s_prev, u_prev, j_max, scratch)
 
 
 @njit(**NJIT_INLINE)
@@ -383,7 +389,7 @@ def _add_rule(out, e0, node_w, j_val, cols, n):
 
 
 @njit(**NJIT_INLINE)
-def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out):
+def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out, scratch):
     """out[:3] += the in-scattering integral over the inside segment of intervals k_a .. k_b - 1 (adjacent
     end to start): cut at equal angles seen from the point light that sees it under the widest angle,
     each part cut into steps of at most ``max_tau`` and ``max_length``. j_max: the largest J met on this
@@ -395,7 +401,7 @@ def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out):
     # under the widest angle (t = t_c + h tan(theta) makes dt / r^2 = d(theta) / h)
     n_sub, t_c, h_l, th_a, d_th = _angular_cuts(o, d, ta, tb, scene.lights.kind, scene.lights.vec, quad.max_angle,
                                                 quad.tol_t)
-    state = (k_a, 0.0, rp.el_u0[k_a], j_max)
+    state = (k_a, 0.0, rp.el_u0[k_a], j_max, scratch)
     u_end = rp.el_u0[k_a]
     t_end = ta
     for sub in range(n_sub):
@@ -415,8 +421,8 @@ def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out):
         n_steps = max(1, int(math.ceil(max(sub_u / quad.max_tau, (t_end - t_start) / quad.max_length))))
         h = sub_u / n_steps
         for st in range(n_steps):
-            work, state = step_in_scattering(o, d, u_start + st * h, h, k_b, state, scene, quad, work, out)
-    return work, state[3]
+            state = step_in_scattering(o, d, u_start + st * h, h, k_b, state, scene, quad, work, out)
+    return state[4], state[3]
 
 
 @njit(**NJIT_INLINE)
@@ -448,11 +454,12 @@ def in_scattering(o, d, n_el, scene, quad, work, out):
     ends, which the light does not see, cost no nodes. Returns work."""
     j_max = 0.0
     k_a = 0
+    scratch = work.scratch
     while k_a < n_el and work.pieces.el_u0[k_a] < quad.u_stop:
         k_b = segment_end(work.pieces, k_a, n_el)
-        work, j_max = segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out)
+        scratch, j_max = segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out, scratch)
         k_a = k_b
-    return work
+    return RayWork(scratch, work.pieces, work.cand, work.stack, work.nodes)
 
 
 @njit(**NJIT)
@@ -483,6 +490,22 @@ def shade_surface(o, d, t_hit, s, scene, quad, scratch, work):
             colour[2] * (e2 / math.pi + ambient[2]))
 
 
+def surface_radiance(surf, o, d, t_hit, s, scene, quad, work):
+    """shade_surface's (scratch, r, g, b) for the hit s, work.scratch and black for a scene without
+    surfaces (surf None: never asked, and then not compiled; see kernels.features)."""
+    if surf is None:
+        return work.scratch, 0.0, 0.0, 0.0
+    return shade_surface(o, d, t_hit, s, scene, quad, work.scratch, work)
+
+
+@overload(surface_radiance, **OVERLOAD)
+def _surface_radiance(surf, o, d, t_hit, s, scene, quad, work):
+    if isinstance(surf, types.NoneType):
+        return lambda surf, o, d, t_hit, s, scene, quad, work: (work.scratch, 0.0, 0.0, 0.0)
+    return lambda surf, o, d, t_hit, s, scene, quad, work: shade_surface(o, d, t_hit, s, scene, quad, work.scratch,
+                                                                           work)
+
+
 @njit(**NJIT_INLINE)
 def ray_end(o, d, t_hit, s_hit, u_total, scene, quad, work, out):
     """out[:3] += L_end T(0, t_end): the background for an escaping ray, the shaded surface for a hit
@@ -496,20 +519,12 @@ def ray_end(o, d, t_hit, s_hit, u_total, scene, quad, work, out):
         return work
     out[3] = 0.0
     if u_total < quad.u_stop:
-        scratch, r, g, b = shade_surface(o, d, t_hit, s_hit, scene, quad, work.scratch, work)
+        scratch, r, g, b = surface_radiance(scene.surfaces, o, d, t_hit, s_hit, scene, quad, work)
         out[0] += r * t_view
         out[1] += g * t_view
         out[2] += b * t_view
         work = RayWork(scratch, work.pieces, work.cand, work.stack, work.nodes)
     return work
-
-
-@njit(**NJIT_INLINE)
-def surface_hit(o, d, surf, tol_t, work):
-    """The camera ray's first surface hit: (scratch, t_hit, surface), (scratch, inf, -1) on a miss."""
-    if n_surfaces(surf) > 0:
-        return first_surface_hit(o, d, surf, tol_t, work.scratch, work.cand, work.stack)
-    return work.scratch, np.inf, -1
 
 
 @njit(**NJIT_INLINE)
@@ -556,22 +571,10 @@ def alloc_ray_work(scene):
     """One thread's work arrays for camera rays (a records.RayWork): the sweep scratch and ray pieces
     (both grow when a ray needs more), the candidate list (room for the most balls of media or of
     surfaces), the BVH stack and the node work vectors."""
-    n_balls = max(scene.media.centers.shape[0], scene.surfaces.centers.shape[0])
+    n_balls = max(scene.media.centers.shape[0], surface_balls(scene.surfaces))
     return RayWork(alloc_scratch(64), alloc_ray_pieces(64, n_media(scene.media)),
                    np.empty(max(n_balls, 1), np.int64), np.empty(2 * STACK, np.int64),
                    alloc_node_work(scene.lights.kind.shape[0]))
-
-
-@njit(**NJIT_INLINE)
-def misses_bvh(o, d, bvh):
-    """Whether the ray misses the root box of every blob of a records.BVH."""
-    ix = 1.0 / d[0] if d[0] != 0.0 else np.inf
-    iy = 1.0 / d[1] if d[1] != 0.0 else np.inf
-    iz = 1.0 / d[2] if d[2] != 0.0 else np.inf
-    for m in range(bvh.root.shape[0]):
-        if ray_box(o[0], o[1], o[2], ix, iy, iz, bvh.node_box, bvh.root[m], 0.0, np.inf):
-            return False
-    return True
 
 
 @njit(**NJIT_INLINE)
@@ -621,7 +624,8 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth):
         nearest = np.inf
         for s in range(spp):
             camera_ray(camera, i, j, s, strata, d)
-            if misses_bvh(camera.position, d, scene.media.bvh) and misses_bvh(camera.position, d, scene.surfaces.bvh):
+            if misses_root_boxes(camera.position, d, scene.media.bvh) and misses_surfaces(camera.position, d,
+                                                                                           scene.surfaces):
                 _background_sample(scene.background, px_out)  # nothing on the ray: the background, at once
             else:
                 work = single_scattering(camera.position, d, scene, quad, work, px_out)

@@ -53,10 +53,12 @@ ShadowMaps = namedtuple("ShadowMaps", ["map_of", "geo", "res", "base", "start", 
 MapPieces = namedtuple("MapPieces", ["t0", "t1", "c", "cum", "reach"])
 
 #: the lights (MODEL.md §5): kind (L,) radiance.DIRECTIONAL or POINT; vec (L, 3) the direction towards a
-#: directional light, or a point light's position; rgb (L, 3) irradiance or intensity; maps ShadowMaps
+#: directional light, or a point light's position; rgb (L, 3) irradiance or intensity; maps ShadowMaps, or
+#: None in a scene with neither shadow maps nor surfaces (kernels.features)
 Lights = namedtuple("Lights", ["kind", "vec", "rgb", "maps"])
 
-#: what a camera ray sees: Media, Surfaces, Lights, and the background and ambient radiance (3,)
+#: what a camera ray sees: Media, Surfaces (None in a scene with neither surfaces nor shadow maps: the kernels
+#: then compile without the surface code, kernels.features), Lights, and the background and ambient radiance (3,)
 SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient"])
 
 #: the in-scattering quadrature (cloudmeta.pack.quadrature): the step rule, 7 Gauss and 15 Kronrod nodes
