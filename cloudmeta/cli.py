@@ -9,7 +9,7 @@ import threading
 import time
 from pathlib import Path
 
-from .errors import CloudmetaError, SceneError
+from .errors import CloudmetaError, InputError, SceneError
 
 #: exit status of a run stopped by Ctrl-C or SIGTERM (128 + SIGINT, as a shell reports it)
 INTERRUPTED = 130
@@ -19,6 +19,9 @@ def _render(args):
     from .animation import load_animation
     if any(v is not None for v in (args.frames, args.workers, args.scheduler, args.tiles)) or args.overwrite \
             or load_animation(args.scene) is not None:
+        if args.error:
+            raise InputError("--error: only for a single image, not with --frames, --tiles, --workers, "
+                             "--scheduler or an animated scene")
         from .cluster import frames_command  # a sequence, tiles or a cluster (docs/animation.md)
         return frames_command(args)
     from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_exr, encode_png
@@ -40,12 +43,23 @@ def _render(args):
           f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights")
     # every output is created now as a temporary file and renamed into place only when all are written
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
-        image, took = _render_image(scene, progress=not args.quiet and sys.stderr.isatty())
-        encode_exr(image, tmps[0], colourspace=scene.render.colourspace)
+        estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
+        image, error, took = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate)
+        encode_exr(image, tmps[0], colourspace=scene.render.colourspace, error=error)
         if len(tmps) > 1:
             encode_png(image, tmps[1], exposure=exposure, colourspace=scene.render.colourspace)
+    if error is not None:
+        from .estimate import estimated_rel_rmse
+        target = (f"render.error {scene.render.error:g}" if scene.render.error is not None else
+                  f"quality {scene.render.quality}: {_TARGETS.get(scene.render.quality, 'none')}")
+        print(f"cloudmeta: estimated relative RMSE {estimated_rel_rmse(image, error):.2e} (target of {target}; "
+              f"per pixel in the EXR's channels error.R/G/B)")
     print(f"cloudmeta: rendered in {took:.2f} s; wrote {', '.join(path for _, path, _ in outputs)}")
     return 0
+
+
+#: the relative RMSE each preset aims at (issue #11; docs/error_estimate.md)
+_TARGETS = {"draft": "3e-3", "default": "1e-3", "fine": "3e-4"}
 
 
 def _outputs(args, scene):
@@ -64,19 +78,20 @@ def _outputs(args, scene):
     return out
 
 
-def _render_image(scene, progress):
-    """(image, seconds): the render, on a thread of its own (``interruptible``)."""
+def _render_image(scene, progress, error=False):
+    """(image, error or None, seconds): the render, on a thread of its own (``interruptible``)."""
     import numpy as np
 
     from .render import render
     compile_notice()
     start = time.perf_counter()
-    image = interruptible(render, scene, progress=progress)
+    result = interruptible(render, scene, progress=progress, error=error)
+    image, err = result if error else (result, None)
     took = time.perf_counter() - start
     if not np.all(np.isfinite(image)):
         raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
                                            "the lights' irradiance or intensity (README: Limits)")
-    return image, took
+    return image, err, took
 
 
 def compile_notice(note=""):
@@ -167,6 +182,9 @@ def build_parser():
                    help="shadow rays to every light (exact), or light-space maps for directional lights (map)")
     r.add_argument("--shadow-map", type=_texels, help="texels per side of a shadow map (default 384)")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: the scene's)")
+    r.add_argument("--error", action="store_true",
+                   help="estimate each pixel's error (a second, coarser render) and write it into the EXR as "
+                        "channels error.R/G/B; prints the estimated relative RMSE (docs/error_estimate.md)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     a = r.add_argument_group("sequences and clusters (docs/animation.md)")
     a.add_argument("--frames", help="frames A:B[:STEP] (A to B - 1) or N; -o and --png then take {frame} fields, "

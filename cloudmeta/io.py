@@ -18,6 +18,8 @@ from .errors import InputError, OutputError
 from .limits import MAX_EXPOSURE
 
 _CHANNELS = "RGBA"
+#: the EXR channels of the per-pixel error estimate (render(..., error=True))
+ERROR_CHANNELS = ("error.R", "error.G", "error.B")
 #: the process's umask, read once at import (reading it means setting it): outputs get the permissions an
 #: ordinary open() would give them, not mkstemp's 0600
 _UMASK = os.umask(0o022)
@@ -120,17 +122,19 @@ def check_image(image):
     return arr.astype(np.float64, copy=False)
 
 
-def write_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False):
+def write_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False, error=None):
     """Write an H x W x 3 (RGB) or H x W x 4 (RGBA) linear image as a single-part scanline OpenEXR.
 
     Channels are FLOAT, or HALF with ``half=True``; the header carries the ``chromaticities`` of
-    ``colourspace`` so that readers know the primaries and white of the linear values.
+    ``colourspace`` so that readers know the primaries and white of the linear values. ``error``: an
+    H x W x 3 estimate of each pixel's absolute error (cloudmeta.render(..., error=True)), written as the
+    extra channels error.R, error.G, error.B (FLOAT).
     """
     with atomic_output(path) as tmp:
-        encode_exr(image, tmp, colourspace, half)
+        encode_exr(image, tmp, colourspace, half, error)
 
 
-def encode_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False):
+def encode_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False, error=None):
     """``write_exr`` straight to ``path``, without a temporary file (for callers that hold one already)."""
     arr = check_image(image)
     if not isinstance(half, (bool, np.bool_)):
@@ -144,6 +148,12 @@ def encode_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False):
                          + ("; write with half=False" if half else ""))
     header = {"chromaticities": chromaticities(colourspace)}
     channels = {name: np.ascontiguousarray(stored[:, :, i]) for i, name in enumerate(_CHANNELS[:arr.shape[2]])}
+    if error is not None:
+        err = np.asarray(error, np.float64)  # inf is allowed: no estimate (multiple scattering, one path)
+        if err.shape != arr.shape[:2] + (3,):
+            raise InputError(f"error: expected an H x W x 3 array of the image's size, got shape {err.shape}")
+        for i, name in enumerate(ERROR_CHANNELS):
+            channels[name] = np.ascontiguousarray(err[:, :, i].astype(np.float32))
     import OpenEXR  # here, not at import: a render that writes no EXR should not pay for it
     header["compression"], header["type"] = OpenEXR.ZIP_COMPRESSION, OpenEXR.scanlineimage
     try:

@@ -66,3 +66,6 @@ def render_memory(width, height, n_balls, shadow_texels):
 
 def gib(n_bytes):
     return f"{n_bytes / 2 ** 30:.1f} GiB"
+
+#: the smallest target relative RMSE of ``render.error`` (the reference preset's own error is ~1e-7)
+MIN_ERROR_TARGET = 1e-6

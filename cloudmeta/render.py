@@ -43,6 +43,7 @@ from .kernels.radiance import render_pixels
 from .pack import pack_camera, quadrature, scene_records
 from .scene import RenderSettings, Scene
 from .errors import InputError
+from .estimate import with_estimate
 
 PRESETS = {
     "draft": dict(tolerance=1e-2, max_tau=4.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-2, root_tolerance=1e-9),
@@ -80,7 +81,7 @@ def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
                    tol_t=float(pick("root_tolerance")) * diagonal)
 
 
-def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None):
+def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False):
     """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha.
 
     With ``depth=True`` returns (image, depth): depth (H x W, float64) is, per pixel, the distance along
@@ -90,12 +91,41 @@ def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=
     its place in the frame alone. A tile still allocates the whole frame's arrays (40 bytes a pixel).
     With ``render.scattering: multiple`` the Monte Carlo orders (cloudmeta.multiple) are added to the
     tile's pixels; their random numbers are keyed by the pixel too.
+
+    With ``error=True`` the result gains ``error`` (last: (image, error) or (image, depth, error)), an
+    H x W x 3 float32 estimate of each pixel's absolute error: the difference to a render with coarser
+    quadrature settings (cloudmeta.estimate; docs/error_estimate.md). With ``render.error`` set (a target
+    relative RMSE) the settings are refined until the estimate is at most the target.
     """
     if not isinstance(scene, Scene):  # issue #15: the API's wrong types are InputErrors naming the argument
         raise InputError(f"scene: expected a cloudmeta Scene (from load_scene), got {type(scene).__name__}")
     window = _window(rows, scene.image.height, "rows"), _window(columns, scene.image.width, "columns")
     multiple = _multiple_scattering(scene)
-    packed = pack_scene(scene, seed)
+    target = scene.render.error
+    if error or target is not None:  # cloudmeta.estimate: a second, coarser render; refined to the target
+        done = {}
+
+        def at(quality):  # the image at these settings; the packing and depth kept for the one chosen
+            packed = pack_scene(scene, seed, quality)
+            done[quality] = (packed, *_single_scattering(scene, packed, window, progress))
+            return done[quality][1]
+        image, err, quality, _ = with_estimate(at, scene_quality(scene), target)
+        packed, _, nearest = done[quality]
+    else:
+        packed, err = pack_scene(scene, seed), None
+        image, nearest = _single_scattering(scene, packed, window, progress)
+    if multiple is not None:
+        image, stderr = multiple(scene, image, seed=seed, progress=progress, rows=rows, columns=columns,
+                                 packed=packed)
+        if error:
+            err = np.sqrt(err * err + stderr * stderr)
+    out = (image.astype(np.float32),) + ((nearest.copy(),) if depth else ()) + \
+        ((err.astype(np.float32),) if error else ())
+    return out if len(out) > 1 else out[0]
+
+
+def _single_scattering(scene, packed, window, progress):
+    """(image, nearest) of the tile ``window``: the deterministic renderer's H x W x 4 and depth."""
     camera, records, quad = packed
     w, h = scene.image.width, scene.image.height
     image = np.zeros((h, w, 4), np.float64)
@@ -103,20 +133,20 @@ def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=
     run_bands(lambda row0, p0, p1: render_pixels(camera, records, quad, row0, p0, p1, image, nearest), window, w,
               progress)
     (r_lo, r_hi), (c_lo, c_hi) = window
-    image, nearest = image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi]
-    if multiple is not None:
-        image, _ = multiple(scene, image, seed=seed, progress=progress, rows=rows, columns=columns, packed=packed)
-    if depth:
-        return image.astype(np.float32), nearest.copy()
-    return image.astype(np.float32)
+    return image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi]
 
 
-def pack_scene(scene, seed):
-    """(camera, scene records, quadrature): the scene packed once for every estimator (cloudmeta.pack)."""
-    lo, hi = scene.bbox()
-    quad = quadrature(resolve_quality(scene.render, float(np.linalg.norm(hi - lo))))
+def pack_scene(scene, seed, quality=None):
+    """(camera, scene records, quadrature): the scene packed once for every estimator (cloudmeta.pack), at
+    the scene's quality settings or at ``quality`` (a Quality)."""
+    quad = quadrature(scene_quality(scene) if quality is None else quality)
     records = scene_records(scene, quad, scene.render.shadow_map or SHADOW_MAP_RESOLUTION)
     return pack_camera(scene, seed), records, quad
+
+
+def scene_quality(scene) -> Quality:
+    lo, hi = scene.bbox()
+    return resolve_quality(scene.render, float(np.linalg.norm(hi - lo)))
 
 
 def run_bands(kernel, window, width, progress):

@@ -122,6 +122,7 @@ class RenderSettings:
     scattering: str = "single"  #: single | multiple (README: multiple scattering)
     max_order: int = 64         #: multiple: the highest scattering order
     ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
+    error: float | None = None  #: a target relative RMSE: the quadrature is refined until the estimate meets it
 
 
 @dataclass(frozen=True)
@@ -669,7 +670,9 @@ def _render(top, overrides=None):
         colourspace=colourspace,
         scattering=n.choice("scattering", SCATTERING_MODES, "single"),
         max_order=n.integer("max_order", 64, **_int_range(1, lim.MAX_ORDER)),
-        ms_spp=n.integer("ms_spp", 16, **_int_range(1, lim.MAX_SPP)))
+        ms_spp=n.integer("ms_spp", 16, **_int_range(1, lim.MAX_SPP)),
+        error=n.number("error", None, check=lambda v: lim.MIN_ERROR_TARGET <= v <= 0.5,
+                       expect=f"a relative RMSE from {lim.MIN_ERROR_TARGET:g} to 0.5 (docs/error_estimate.md)"))
 
 
 EXPOSURE = dict(check=lambda v: abs(v) <= lim.MAX_EXPOSURE,

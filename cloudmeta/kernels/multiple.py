@@ -160,18 +160,15 @@ def next_event(x, d, k, s, scene, tol_t, work, out):
 
 
 @njit(**NJIT)
-def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, rows, out):
+def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, vectors, out):
     """out[:3] = one path's estimate of the radiance the deterministic renderer leaves out (orders >= 2
     of the lights, orders >= 1 of the environment) along the camera ray o_cam + t d_cam.
-    key = (seed, pixel, path); settings a records.PathSettings; rows (4, 3) work vectors. Returns work,
+    key = (seed, pixel, path); settings a records.PathSettings; vectors = (o, d, d_new, light), four 3-vectors of work. Returns work,
     grown if a ray needed more room."""
     seed, pixel, path = key
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
     background = scene.background
-    o = rows[0]
-    d = rows[1]
-    d_new = rows[2]
-    light = rows[3]
+    o, d, d_new, light = vectors
     for c in range(3):
         o[c] = o_cam[c]
         d[c] = d_cam[c]
@@ -241,7 +238,7 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
     width, spp, paths = camera.width, camera.spp, settings.paths
     strata = int(math.ceil(math.sqrt(spp)))
     work = alloc_ray_work(scene)
-    rows = np.empty((4, 3))
+    vectors = (np.empty(3), np.empty(3), np.empty(3), np.empty(3))
     d = np.empty(3)
     est = np.empty(3)
     acc = np.empty(3)
@@ -256,7 +253,7 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
             if misses_root_boxes(camera.position, d, scene.media.bvh):
                 continue  # no medium on the camera ray: nothing scatters, the estimate is 0
             work = path_radiance(camera.position, d, (camera.seed, i * width + j, path), scene, quad, settings,
-                                 work, rows, est)
+                                 work, vectors, est)
             for c in range(3):
                 acc[c] += est[c]
                 acc2[c] += est[c] * est[c]

@@ -1,0 +1,57 @@
+"""The error estimate of a render and error-controlled rendering (docs/error_estimate.md, issue #11).
+
+A render's error is estimated as its difference to a second render of the same scene with every quadrature
+setting coarser (``COARSER``): where the quadrature converges, that difference is of the size of the
+coarser render's error, an estimate that errs on the large side. ``render.error: TARGET`` (a relative RMSE)
+refines the settings by the same factors until the estimate is at most the target.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+#: how much coarser each quadrature setting of the estimate's second render is (finer: divided by these)
+COARSER = dict(tolerance=3.0, max_tau=2.0, max_length=2.0, max_angle=2.0, cutoff=3.0)
+#: error-controlled renders refine at most this often (each step costs about twice the one before)
+MAX_REFINEMENTS = 5
+
+
+def coarser_quality(q):
+    """The settings of the error estimate's second render: every quadrature setting coarser."""
+    return replace(q, tolerance=q.tolerance * COARSER["tolerance"], max_tau=q.max_tau * COARSER["max_tau"],
+                   max_length=q.max_length * COARSER["max_length"], max_angle=q.max_angle * COARSER["max_angle"],
+                   cutoff=min(q.cutoff * COARSER["cutoff"], 0.5))
+
+
+def finer_quality(q):
+    """One refinement of an error-controlled render: every quadrature setting finer by COARSER's factors."""
+    return replace(q, tolerance=q.tolerance / COARSER["tolerance"], max_tau=q.max_tau / COARSER["max_tau"],
+                   max_length=q.max_length / COARSER["max_length"], max_angle=q.max_angle / COARSER["max_angle"],
+                   cutoff=q.cutoff / COARSER["cutoff"])
+
+
+def estimated_rel_rmse(image, error):
+    """The image's estimated relative RMSE, the measure of the presets' targets: sqrt(mean over pixels and
+    RGB of error^2) / sqrt(mean of image^2)."""
+    rgb = np.asarray(image, np.float64)[..., :3]
+    e = np.asarray(error, np.float64)
+    norm = float(np.sqrt(np.mean(rgb * rgb)))
+    return float(np.sqrt(np.mean(e * e))) / norm if norm > 0 else 0.0
+
+
+def with_estimate(render_at, quality, target=None):
+    """(image, error, quality used, refinements): render_at(quality) -> H x W x 4 (float64) at the given
+    settings and at coarser ones; with a ``target`` relative RMSE, refined until the estimate is at most
+    the target (or MAX_REFINEMENTS were made). Each refinement's estimate is its difference to the render
+    before it, which is exactly its coarser render."""
+    image = render_at(quality)
+    previous = render_at(coarser_quality(quality))
+    error = np.abs(image[..., :3] - previous[..., :3])
+    steps = 0
+    while target is not None and steps < MAX_REFINEMENTS and estimated_rel_rmse(image, error) > target:
+        quality = finer_quality(quality)
+        previous, image = image, render_at(quality)
+        error = np.abs(image[..., :3] - previous[..., :3])
+        steps += 1
+    return image, error, quality, steps

@@ -1,0 +1,95 @@
+"""The error estimate of ``cloudmeta.render(scene, error=True)`` against the true error, on the accuracy suite.
+
+For every suite scene (scenes/suite/, 64 x 48, exact shadow rays) and the presets draft, default and fine:
+the image's estimated relative RMSE (cloudmeta.estimate.estimated_rel_rmse of the returned per-pixel error)
+against its true relative RMSE (validation/_suite.py's ``rel_rmse`` against the scene's converged reference,
+validation/results/suite/). Issue #11 asks for an estimate at least half the true error and at most 10x it:
+the ratio estimate / true is checked against [0.5, 10] on every scene and preset. Also the time of the render
+with the estimate against the time without it (one render each, after a warm-up; noisy on a shared machine).
+
+    python -m validation.error_estimate [--scenes NAME ...]
+
+Writes validation/results/error_estimate.csv. Exit status 0 only if every ratio lies in [0.5, 10].
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numpy as np
+
+import cloudmeta as cm
+from cloudmeta.estimate import estimated_rel_rmse
+from validation import _suite as S
+from validation import suite_references
+
+RESULTS = Path(__file__).resolve().parent / "results"
+PRESETS = ("draft", "default", "fine")
+#: issue #11: the estimate at least half the true error and at most 10x it
+LOW, HIGH = 0.5, 10.0
+
+
+def reference(path):
+    entry = S.cached(path.stem)
+    if entry is None or entry[2].get("fingerprint") != S.fingerprint(path):
+        suite_references.build(path, crosscheck=False)
+        entry = S.cached(path.stem)
+    return entry[0]
+
+
+def run_scene(path):
+    ref = reference(path)
+    scene = cm.load_scene(path)
+    cm.render(S.with_settings(cm.load_scene(path, width=8, height=6), quality="default"), progress=False, error=True)
+    rows = []
+    for preset in PRESETS:
+        s = S.with_settings(scene, quality=preset)
+        t0 = time.perf_counter()
+        plain = cm.render(s, progress=False)
+        t1 = time.perf_counter()
+        img, err = cm.render(s, progress=False, error=True)
+        t2 = time.perf_counter()
+        assert np.array_equal(plain, img)  # the estimate does not change the image
+        true = S.rel_rmse(img, ref)
+        est = estimated_rel_rmse(img, err)
+        ratio = est / true if true > 0 else float("inf")
+        rows.append(dict(scene=path.stem, preset=preset, true_rel_rmse=true, estimated_rel_rmse=est, ratio=ratio,
+                         within=bool(LOW <= ratio <= HIGH), seconds=t1 - t0, seconds_with_estimate=t2 - t1,
+                         target=S.TARGETS[preset], estimate_meets_target=bool(est <= S.TARGETS[preset])))
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scenes", nargs="*", help="suite scene names (default: all)")
+    args = ap.parse_args(argv)
+    paths = [p for p in S.scene_paths() if not args.scenes or p.stem in args.scenes]
+    rows = []
+    print(f"{'scene':24s} {'preset':8s} {'true':>9s} {'estimate':>9s} {'ratio':>7s}  in [0.5, 10]  "
+          f"{'time':>6s} {'+estimate':>9s}")
+    for path in paths:
+        for r in run_scene(path):
+            rows.append(r)
+            print(f"{r['scene']:24s} {r['preset']:8s} {r['true_rel_rmse']:9.2e} {r['estimated_rel_rmse']:9.2e} "
+                  f"{r['ratio']:7.2f}  {'yes' if r['within'] else 'NO':12s} {r['seconds']:6.2f} "
+                  f"{r['seconds_with_estimate']:9.2f}", flush=True)
+    ratios = np.array([r["ratio"] for r in rows])
+    print(f"\n{len(rows)} cases: ratio estimate / true from {ratios.min():.2f} to {ratios.max():.2f} "
+          f"(median {np.median(ratios):.2f}); {sum(r['within'] for r in rows)} within [{LOW}, {HIGH}]")
+    if not args.scenes:
+        RESULTS.mkdir(exist_ok=True)
+        with open(RESULTS / "error_estimate.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+    return 0 if all(r["within"] for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
