@@ -8,8 +8,10 @@ the ratio estimate / true is checked against [0.5, 10] on every scene and preset
 with the estimate against the time without it (one render each, after a warm-up; noisy on a shared machine).
 
     python -m validation.error_estimate [--scenes NAME ...]
+    python -m validation.error_estimate --targets    # render.error = each preset's target: is it met?
 
-Writes validation/results/error_estimate.csv. Exit status 0 only if every ratio lies in [0.5, 10].
+Writes validation/results/error_estimate.csv (error_targets.csv with --targets). Exit status 0 only if every
+ratio lies in [0.5, 10] (every target is met).
 """
 from __future__ import annotations
 
@@ -65,11 +67,51 @@ def run_scene(path):
     return rows
 
 
+def run_targets(path):
+    """render.error at each preset's target (starting from that preset): true error, estimate, time."""
+    from dataclasses import replace
+    ref = reference(path)
+    rows = []
+    for preset in PRESETS:
+        scene = S.with_settings(cm.load_scene(path), quality=preset, error=S.TARGETS[preset])
+        t0 = time.perf_counter()
+        img, err = cm.render(scene, progress=False, error=True)
+        took = time.perf_counter() - t0
+        true = S.rel_rmse(img, ref)
+        rows.append(dict(scene=path.stem, preset=preset, target=S.TARGETS[preset], true_rel_rmse=true,
+                         estimated_rel_rmse=estimated_rel_rmse(img, err), meets=bool(true <= S.TARGETS[preset]),
+                         seconds=took))
+    return rows
+
+
+def main_targets(paths):
+    rows = []
+    print(f"{'scene':24s} {'start':8s} {'target':>7s} {'true':>9s} {'estimate':>9s}  meets  {'time':>6s}")
+    for path in paths:
+        for r in run_targets(path):
+            rows.append(r)
+            print(f"{r['scene']:24s} {r['preset']:8s} {r['target']:7.0e} {r['true_rel_rmse']:9.2e} "
+                  f"{r['estimated_rel_rmse']:9.2e}  {'yes' if r['meets'] else 'NO ':5s}  {r['seconds']:6.2f}",
+                  flush=True)
+    print(f"\n{len(rows)} cases: {sum(r['meets'] for r in rows)} meet their target")
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", nargs="*", help="suite scene names (default: all)")
+    ap.add_argument("--targets", action="store_true",
+                    help="render.error set to each preset's target instead: does the true error meet it?")
     args = ap.parse_args(argv)
     paths = [p for p in S.scene_paths() if not args.scenes or p.stem in args.scenes]
+    if args.targets:
+        rows = main_targets(paths)
+        if not args.scenes:
+            with open(RESULTS / "error_targets.csv", "w", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=list(rows[0]))
+                w.writeheader()
+                w.writerows(rows)
+        return 0 if all(r["meets"] for r in rows) else 1
     rows = []
     print(f"{'scene':24s} {'preset':8s} {'true':>9s} {'estimate':>9s} {'ratio':>7s}  in [0.5, 10]  "
           f"{'time':>6s} {'+estimate':>9s}")
