@@ -129,3 +129,17 @@ def test_error_target_is_validated(tmp_path, value):
     (tmp_path / "cumulus.csv").write_text((ROOT / "scenes" / "cumulus.csv").read_text())
     with pytest.raises(cm.SceneError, match=r"render\.error"):
         cm.load_scene(p)
+
+
+def test_multiple_scattering_adds_its_standard_error_in_quadrature():
+    from dataclasses import replace
+    from cloudmeta.multiple import render_multiple
+    s = cm.load_scene(ROOT / "scenes" / "cumulus.yaml", width=6, height=5)
+    single = replace(s, ambient=None)
+    multi = replace(single, render=replace(single.render, scattering="multiple", ms_spp=3, max_order=4))
+    img, err = render(multi, progress=False, error=True)
+    _, quad_err = render(single, progress=False, error=True)
+    _, stderr = render_multiple(multi)
+    assert np.all(np.isfinite(stderr)) and stderr.max() > 0
+    expect = np.sqrt(quad_err.astype(np.float64) ** 2 + stderr ** 2)
+    assert np.allclose(err, expect, rtol=1e-6, atol=0)
