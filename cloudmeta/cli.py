@@ -203,7 +203,19 @@ def build_parser():
     i.add_argument("--resolution", type=int, default=96, help="grid samples along the longest side (default 96)")
     i.add_argument("--slice", help="one plane only, e.g. z=2.0, coloured by sigma_t with the contour F = T")
     i.set_defaults(run=_inspect)
+    c = sub.add_parser("compile", help="compile the kernels for every kind of scene now (once per machine; "
+                                       "for worker images, clusters and test runs)")
+    c.add_argument("--jobs", type=_positive, default=2, help="processes side by side (default 2)")
+    c.set_defaults(run=_compile)
     return parser
+
+
+def _compile(args):
+    from .precompile import precompile
+    start = time.perf_counter()
+    results = precompile(args.jobs)
+    print(f"cloudmeta: compiled in {time.perf_counter() - start:.0f} s; kernels cached for this machine")
+    return 0 if all(ok for _, _, ok in results) else 1
 
 
 def _terminate(signum, frame):

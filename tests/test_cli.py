@@ -179,3 +179,20 @@ def test_interrupt_exits_130_with_one_line_and_no_temporary_files(workdir, sig):
     assert proc.returncode == 130, err
     assert err == "cloudmeta: interrupted\n"
     assert set(os.listdir(workdir)) == before
+
+
+def test_compile_jobs_cover_both_kinds_of_scene(tmp_path):
+    """cloudmeta compile: its scenes load, and they are of both kinds the kernels compile for (without
+    surfaces and maps: None records; with them: full records), in single and multiple scattering."""
+    from cloudmeta.precompile import jobs
+    from cloudmeta.render import pack_scene
+    from cloudmeta.scene import load_scene
+    names = [name for name, _ in jobs(tmp_path)]
+    assert len(names) == 5 and names[0].startswith("the ray API")
+    kinds = set()
+    for path in sorted(tmp_path.glob("kind*.yaml")):
+        s = load_scene(path)
+        _, records, _ = pack_scene(s, 0)
+        kinds.add((records.surfaces is None, records.lights.maps is None, s.render.scattering))
+    assert kinds == {(True, True, "single"), (False, False, "single"), (True, True, "multiple"),
+                     (False, False, "multiple")}

@@ -1,0 +1,91 @@
+"""Compile the kernels ahead of the first render: ``cloudmeta compile [--jobs N]``.
+
+The first render on a machine compiles its kernels (2-3 minutes of one core each, then cached; README
+"Compilation cache"). A render compiles only what its scene needs (kernels.features), so a fresh machine
+pays again for the first scene of each kind. This compiles every kind at once, in ``jobs`` processes side by
+side: for a worker image, before a Dask cluster starts, or before a test run. Each job renders a tiny scene
+(or traces a few rays) in a fresh process; the compiled kernels land in the shared cache, and whatever a job
+finds there already is loaded, not compiled again.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+_MEDIUM = """
+  - density: {mode: field, scale: 4.0}
+    albedo: 0.9
+    phase: {type: hg, g: 0.5}
+    balls: [{center: [0, 0, 0], radius: 1.5}, {center: [0.8, 0.2, 0.3], radius: 1.0}]
+"""
+_SCENE = """
+image: {{width: 4, height: 3}}
+camera: {{position: [0, -6, 0], look_at: [0, 0, 0], up: [0, 0, 1], fov: 40}}
+background: [0.3, 0.4, 0.6]
+lights:
+  - {{type: directional, direction: [0.3, -0.5, 0.8], irradiance: 3.0}}
+  - {{type: point, position: [2, -2, 2], intensity: 5.0}}
+render: {{shadows: {shadows}, shadow_map: 8, scattering: {scattering}, ms_spp: 2, max_order: 3}}
+media:{medium}
+{surfaces}
+"""
+_SURFACES = """surfaces:
+  - color: [0.6, 0.5, 0.4]
+    balls: [{center: [0, 0, -3], radii: [6, 6, 1]}]
+"""
+#: name -> (shadows, scattering, with surfaces): the kinds of scene that compile their own kernels
+SCENES = {
+    "single scattering, media only": ("exact", "single", False),
+    "single scattering with surfaces and shadow maps": ("map", "single", True),
+    "multiple scattering, media only": ("exact", "multiple", False),
+    "multiple scattering with surfaces": ("exact", "multiple", True),
+}
+_RENDER = "import cloudmeta as cm; cm.render(cm.load_scene({path!r}), progress=False)"
+_RAYS = """
+import numpy as np, cloudmeta as cm
+b = cm.Blob(centers=[[0, 0, 0], [0.8, 0.2, 0.3]], radii=[1.5, 1.0])
+o = np.array([[0.0, -5.0, 0.0], [0.1, -5.0, 0.2]]); d = np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+cm.roots(b, o, d); cm.segments(b, o, d); cm.optical_depth(b, o, d); cm.first_hit(b, o, d)
+p = np.zeros((2, 3)); cm.field(b, p); cm.gradient(b, p); cm.normal(b, p)
+"""
+
+
+def jobs(folder):
+    """[(name, python code)]: the vectorised ray API and one job per kind of scene, the longest first (the
+    ray API and the kernel with surfaces and maps share least with the others)."""
+    out = [("the ray API (roots, segments, optical depth, first hit, field)", _RAYS)]
+    for i, (name, (shadows, scattering, surfaces)) in enumerate(SCENES.items()):
+        path = Path(folder) / f"kind{i}.yaml"
+        path.write_text(_SCENE.format(shadows=shadows, scattering=scattering, medium=_MEDIUM,
+                                      surfaces=_SURFACES if surfaces else ""))
+        out.append((name, _RENDER.format(path=str(path))))
+    return [out[0], out[2], out[1], out[4], out[3]]
+
+
+def precompile(n_jobs=2, report=print):
+    """Run every job, ``n_jobs`` processes at a time; returns [(name, seconds, ok)]. A failed job reports
+    its last line of error and the others go on (its kernels then compile on first use)."""
+    with tempfile.TemporaryDirectory(prefix="cloudmeta-compile-") as folder:
+        todo = jobs(folder)
+        env = dict(os.environ)
+        package_root = str(Path(__file__).resolve().parent.parent)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
+
+        def run(job):
+            name, code = job
+            start = time.perf_counter()
+            done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+            took = time.perf_counter() - start
+            ok = done.returncode == 0
+            last = (done.stderr.strip().splitlines() or ["?"])[-1]
+            report(f"cloudmeta: compiled {name} in {took:.0f} s" if ok else
+                   f"cloudmeta: compiling {name} failed: {last}")
+            return name, took, ok
+
+        with ThreadPoolExecutor(max(1, n_jobs)) as pool:
+            return list(pool.map(run, todo))
