@@ -456,6 +456,47 @@ def first_entry(o, d, tmin, tmax, blob, tol_t, cand, n_cand, scratch):
 
 # --- the first hit alone: an incremental sweep that stops at the first entry -----------------------------
 
+@njit(**NJIT_INLINE)
+def _starts_before(keys, a, b):
+    """The order of the chords' starts, ties by index: the order of a stable sort (insertion_argsort)."""
+    return keys[a] < keys[b] or (keys[a] == keys[b] and a < b)
+
+
+@njit(**NJIT_INLINE)
+def _sift_min(keys, heap, root, n):
+    """Restore the min-heap heap[:n] (by _starts_before) below root."""
+    while True:
+        child = 2 * root + 1
+        if child >= n:
+            return
+        if child + 1 < n and _starts_before(keys, heap[child + 1], heap[child]):
+            child += 1
+        if not _starts_before(keys, heap[child], heap[root]):
+            return
+        heap[root], heap[child] = heap[child], heap[root]
+        root = child
+
+
+@njit(**NJIT)
+def start_heap(keys, heap, n):
+    """heap[:n]: the indices 0..n-1 as a min-heap of the chords' starts (O(n), where a sort is O(n log n):
+    a first hit takes only the chords up to the hit off it)."""
+    for i in range(n):
+        heap[i] = i
+    for root in range(n // 2 - 1, -1, -1):
+        _sift_min(keys, heap, root, n)
+
+
+@njit(**NJIT_INLINE)
+def pop_start(keys, heap, n):
+    """Take the earliest start off the heap heap[:n]: returns (its chord, n - 1)."""
+    i = heap[0]
+    n -= 1
+    heap[0] = heap[n]
+    _sift_min(keys, heap, 0, n)
+    return i, n
+
+
 @njit(**NJIT)
 def sweep_first_inside(n_p, threshold, tmin, tmax, tol_t, scratch):
     """Where the ray is first inside (F >= T) within [tmin, tmax], from the chords gathered in the scratch:
@@ -465,30 +506,42 @@ def sweep_first_inside(n_p, threshold, tmin, tmax, tol_t, scratch):
     The sweep of ``composite`` followed by ``inside_pieces`` with first_only, walked interval by interval
     and stopped at the first entry, so that an opaque surface pays only for the intervals up to its hit.
     Each interval's control values are those composite writes, bit for bit: the same chords, added in the
-    same order (act holds the active chords in the order of ``order``), cut by the same de Casteljau
-    splits, since the breakpoints visited are the same (the next one is the nearest of the next chord
-    start and the active chords' ends: no other chord end can lie before it). Only the starts are sorted,
-    with the same sort as composite's. An interval where the convex hull of F stays below T has no root
-    and is not clipped; the others are clipped by the same ``clip_roots`` call as inside_pieces makes, and
-    take the same roots (a root counts only where the class changes; a touch does not enter).
+    same order (act holds the active chords by start, ties by index, as composite's sort puts them; its
+    heap sort of more than SMALL_SORT chords may order chords that start at the same t otherwise, which
+    changes only the order of adding their control values), cut by the same de Casteljau splits, since
+    the breakpoints visited are the same (the next one is the nearest of the next chord start and the
+    active chords' ends: no other chord end can lie before it). The starts come off a heap, so only those
+    before the hit are ordered. An interval where the convex hull of F stays below T has no root and is
+    not clipped; the others are clipped by the same ``clip_roots`` call as inside_pieces makes, and take
+    the same roots (a root counts only where the class changes; a touch does not enter).
     """
     p_t0, p_t1, p_c = scratch.chord_t0, scratch.chord_t1, scratch.chord_c
-    order, act = scratch.order, scratch.act
+    heap, act = scratch.order, scratch.act
     st_lo, st_hi, st_c, g = scratch.st_lo, scratch.st_hi, scratch.st_c, scratch.g
     loc, rising = scratch.loc, scratch.rising
-    heap_argsort(p_t0, order, n_p)
+    start_heap(p_t0, heap, n_p)
+    n_heap = n_p
     n_act = 0
-    i_s = 0
-    ta = p_t0[order[0]]
+    ta = p_t0[heap[0]]
     while ta < tmax:
-        n_act, i_s = advance_active(ta, p_t0, p_t1, order, act, n_act, i_s, n_p)
+        # advance_active at ta: chords that ended drop out (in order), chords that start join (by start)
+        j = 0
+        for m in range(n_act):
+            if p_t1[act[m]] > ta:
+                act[j] = act[m]
+                j += 1
+        n_act = j
+        while n_heap > 0 and p_t0[heap[0]] <= ta:
+            i, n_heap = pop_start(p_t0, heap, n_heap)
+            act[n_act] = i
+            n_act += 1
         if n_act == 0:
-            if i_s == n_p:
+            if n_heap == 0:
                 break
-            ta = p_t0[order[i_s]]  # a gap: F = 0 < T up to the next chord
+            ta = p_t0[heap[0]]  # a gap: F = 0 < T up to the next chord
             continue
         # the next breakpoint: the next start, or the nearest end of an active chord
-        tb = p_t0[order[i_s]] if i_s < n_p else np.inf
+        tb = p_t0[heap[0]] if n_heap > 0 else np.inf
         for m in range(n_act):
             tb = min(tb, p_t1[act[m]])
         lo = max(ta, tmin)
