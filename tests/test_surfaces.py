@@ -137,6 +137,63 @@ def test_first_hit_is_the_first_root(rng, kernel):
     assert np.all(cm.first_hit(blob, o[hit] + mid[:, None] * d[hit], d[hit]) == 0.0)
 
 
+def _surfaces_record(blobs):
+    from types import SimpleNamespace
+
+    from cloudmeta.pack import pack_surfaces
+    return pack_surfaces([SimpleNamespace(blob=b, color=(0.5, 0.5, 0.5)) for b in blobs])
+
+
+def _full_sweep_hit(o, d, tmax, surf, tol_t, stop_at_first):
+    """The surfaces' first hit (or, with stop_at_first, whether any surface is hit) by the full sweep
+    (sweep.first_entry), each surface traced up to the nearest hit so far: the twin of
+    surfaces.first_surface_hit and surfaces_block before the incremental sweep."""
+    from cloudmeta.kernels import sweep as ks
+    from cloudmeta.kernels.records import BlobRecord
+    t_hit, s_hit = np.inf, -1
+    for s in range(len(surf.start) - 1):
+        lo, hi = surf.start[s], surf.start[s + 1]
+        rec = BlobRecord(surf.centers, surf.frames, surf.weights, surf.kernel[s], surf.blobbiness[s],
+                         surf.threshold[s])
+        cand = np.arange(lo, hi)
+        _, t = ks.first_entry(o, d, 0.0, min(t_hit, tmax), rec, tol_t, cand, hi - lo, ks.alloc_scratch(4))
+        if t < t_hit:
+            t_hit, s_hit = t, s
+            if stop_at_first or t_hit == 0.0:
+                break
+    return t_hit, s_hit
+
+
+def test_first_surface_hit_and_shadow_rays_match_the_full_sweep(rng):
+    """surfaces.first_surface_hit and surfaces_block (the incremental sweep, each surface up to the nearest
+    hit so far) give the full sweep's answers bit for bit: three surfaces of different kernels, camera rays
+    from outside and from inside the surfaces, shadow rays with t_max cut-offs."""
+    from cloudmeta.kernels import surfaces as ksurf
+    from cloudmeta.kernels import sweep as ks
+    blobs = [random_blob(rng, 15, k, ellipsoids=True, negative=True) for k in ("blinn", "murakami4", "nishimura")]
+    blobs.append(random_blob(rng, 15, "wyvill6", negative=True, box=1.5))
+    surf = _surfaces_record(blobs)
+    o, d = random_rays(rng, 150)
+    o = np.concatenate([o, surf.centers[:40]])  # from inside balls, often inside a surface
+    d = np.concatenate([d, d[:40]])
+    cand = np.empty(len(surf.weights), np.int64)
+    stack = np.empty(256, np.int64)
+    tol_t = 1e-9
+    kinds = dict(hit=0, inside=0, blocked=0, free=0)
+    for i in range(len(o)):
+        _, t, s = ksurf.first_surface_hit(o[i], d[i], surf, tol_t, ks.alloc_scratch(4), cand, stack)
+        ref_t, ref_s = _full_sweep_hit(o[i], d[i], np.inf, surf, tol_t, False)
+        assert (t, s) == (ref_t, ref_s), i
+        kinds["hit"] += t < np.inf
+        kinds["inside"] += t == 0.0
+        for tmax in (0.5 * t if t < np.inf else 5.0, t + 1.0 if t < np.inf else 30.0):
+            _, blocked = ksurf.surfaces_block(o[i], d[i], tmax, surf, tol_t, ks.alloc_scratch(4), cand, stack)
+            ref_blocked = _full_sweep_hit(o[i], d[i], tmax, surf, tol_t, True)[0] < np.inf
+            assert blocked == ref_blocked, (i, tmax)
+            kinds["blocked" if blocked else "free"] += 1
+    assert kinds["hit"] > 40 and kinds["inside"] > 5 and kinds["blocked"] > 40 and kinds["free"] > 40, kinds
+
+
 @pytest.mark.parametrize("ellipsoids", [False, True])
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_normals_match_finite_differences_of_the_field(rng, kernel, ellipsoids):

@@ -2,7 +2,9 @@
 shadow ray is blocked, and the normal at a hit.
 
 Each surface is its own blob, drawn as its isosurface F = T: the fields of two surfaces do not add. An
-opaque surface needs only the first root of each blob (sweep.first_entry), never the segments after it.
+opaque surface needs only the first root of each blob, never the segments after it: sweep.first_inside
+walks the ray's intervals in order and stops at the first entry (camera rays) or the first blocker (shadow
+rays), with the answer of the full sweep (sweep.first_entry) bit for bit.
 The surfaces are one records.Surfaces (cloudmeta.pack.pack_surfaces).
 """
 import math
@@ -14,7 +16,7 @@ from ..config import NJIT, NJIT_INLINE
 from .bvh import bvh_candidates, bvh_point_candidates
 from .metaball import gradient_sum
 from .records import BlobRecord
-from .sweep import first_entry
+from .sweep import first_inside
 
 #: a surface point's shadow ray starts this many root tolerances off the surface, along the normal: the
 #: hit is within one root tolerance of the isosurface, so the shadow ray starts outside it and the
@@ -41,7 +43,7 @@ def surface_entry(o, d, tmax, surf, s, tol_t, scratch, cand, stack):
     n_cand = bvh_candidates(o, d, 0.0, tmax, surf.bvh, surf.bvh.root[s], stack, cand)
     if n_cand == 0:
         return scratch, np.inf
-    return first_entry(o, d, 0.0, tmax, surface_blob(surf, s), tol_t, cand, n_cand, scratch)
+    return first_inside(o, d, 0.0, tmax, surface_blob(surf, s), tol_t, cand, n_cand, scratch)
 
 
 @njit(**NJIT)

@@ -452,3 +452,164 @@ def first_entry(o, d, tmin, tmax, blob, tol_t, cand, n_cand, scratch):
     if n_tr == 0:
         return scratch, np.inf
     return scratch, scratch.roots[0]
+
+
+# --- the first hit alone: an incremental sweep that stops at the first entry -----------------------------
+
+@njit(**NJIT_INLINE)
+def _starts_before(keys, a, b):
+    """The order of the chords' starts, ties by index: the order of a stable sort (insertion_argsort)."""
+    return keys[a] < keys[b] or (keys[a] == keys[b] and a < b)
+
+
+@njit(**NJIT_INLINE)
+def _sift_min(keys, heap, root, n):
+    """Restore the min-heap heap[:n] (by _starts_before) below root."""
+    while True:
+        child = 2 * root + 1
+        if child >= n:
+            return
+        if child + 1 < n and _starts_before(keys, heap[child + 1], heap[child]):
+            child += 1
+        if not _starts_before(keys, heap[child], heap[root]):
+            return
+        heap[root], heap[child] = heap[child], heap[root]
+        root = child
+
+
+@njit(**NJIT)
+def start_heap(keys, heap, n):
+    """heap[:n]: the indices 0..n-1 as a min-heap of the chords' starts (O(n), where a sort is O(n log n):
+    a first hit takes only the chords up to the hit off it)."""
+    for i in range(n):
+        heap[i] = i
+    for root in range(n // 2 - 1, -1, -1):
+        _sift_min(keys, heap, root, n)
+
+
+@njit(**NJIT_INLINE)
+def pop_start(keys, heap, n):
+    """Take the earliest start off the heap heap[:n]: returns (its chord, n - 1)."""
+    i = heap[0]
+    n -= 1
+    heap[0] = heap[n]
+    _sift_min(keys, heap, 0, n)
+    return i, n
+
+
+@njit(**NJIT)
+def sweep_first_inside(n_p, threshold, tmin, tmax, tol_t, scratch):
+    """Where the ray is first inside (F >= T) within [tmin, tmax], from the chords gathered in the scratch:
+    the first entering root, the start of the first interval where F >= T already (tmin when the ray
+    starts inside), inf if it never enters.
+
+    The sweep of ``composite`` followed by ``inside_pieces`` with first_only, walked interval by interval
+    and stopped at the first entry, so that an opaque surface pays only for the intervals up to its hit.
+    Each interval's control values are those composite writes, bit for bit: the same chords, added in the
+    same order (act holds the active chords by start, ties by index, as composite's sort puts them; its
+    heap sort of more than SMALL_SORT chords may order chords that start at the same t otherwise, which
+    changes only the order of adding their control values), cut by the same de Casteljau splits, since
+    the breakpoints visited are the same (the next one is the nearest of the next chord start and the
+    active chords' ends: no other chord end can lie before it). The starts come off a heap, so only those
+    before the hit are ordered. An interval where the convex hull of F stays below T has no root and is
+    not clipped; the others are clipped by the same ``clip_roots`` call as inside_pieces makes, and take
+    the same roots (a root counts only where the class changes; a touch does not enter).
+    """
+    p_t0, p_t1, p_c = scratch.chord_t0, scratch.chord_t1, scratch.chord_c
+    heap, act = scratch.order, scratch.act
+    st_lo, st_hi, st_c, g = scratch.st_lo, scratch.st_hi, scratch.st_c, scratch.g
+    loc, rising = scratch.loc, scratch.rising
+    start_heap(p_t0, heap, n_p)
+    n_heap = n_p
+    n_act = 0
+    ta = p_t0[heap[0]]
+    while ta < tmax:
+        # advance_active at ta: chords that ended drop out (in order), chords that start join (by start)
+        j = 0
+        for m in range(n_act):
+            if p_t1[act[m]] > ta:
+                act[j] = act[m]
+                j += 1
+        n_act = j
+        while n_heap > 0 and p_t0[heap[0]] <= ta:
+            i, n_heap = pop_start(p_t0, heap, n_heap)
+            act[n_act] = i
+            n_act += 1
+        if n_act == 0:
+            if n_heap == 0:
+                break
+            ta = p_t0[heap[0]]  # a gap: F = 0 < T up to the next chord
+            continue
+        # the next breakpoint: the next start, or the nearest end of an active chord
+        tb = p_t0[heap[0]] if n_heap > 0 else np.inf
+        for m in range(n_act):
+            tb = min(tb, p_t1[act[m]])
+        lo = max(ta, tmin)
+        hi = min(tb, tmax)
+        if hi <= lo:  # before tmin
+            ta = tb
+            continue
+        # composite's loop body for one interval, unchanged (scalars and 2-D indexing only)
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = 0.0
+        mag = 0.0
+        for m in range(n_act):
+            i = act[m]
+            r0, r1, r2, r3, r4, r5, r6 = p_c[i, 0], p_c[i, 1], p_c[i, 2], p_c[i, 3], p_c[i, 4], p_c[i, 5], p_c[i, 6]
+            if lo > p_t0[i]:  # the ray starts inside this chord (tmin): drop what lies before
+                _, (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(r0, r1, r2, r3, r4, r5, r6,
+                                                                  (lo - p_t0[i]) / (p_t1[i] - p_t0[i]))
+                p_t0[i] = lo
+            if hi < p_t1[i]:
+                (b0, b1, b2, b3, b4, b5, b6), (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(
+                    r0, r1, r2, r3, r4, r5, r6, (hi - lo) / (p_t1[i] - lo))
+                p_t0[i] = hi
+                p_c[i, 0] = r0
+                p_c[i, 1] = r1
+                p_c[i, 2] = r2
+                p_c[i, 3] = r3
+                p_c[i, 4] = r4
+                p_c[i, 5] = r5
+                p_c[i, 6] = r6
+            else:
+                b0, b1, b2, b3, b4, b5, b6 = r0, r1, r2, r3, r4, r5, r6
+            a0 += b0
+            a1 += b1
+            a2 += b2
+            a3 += b3
+            a4 += b4
+            a5 += b5
+            a6 += b6
+            mag += abs(b0) + abs(b1) + abs(b2) + abs(b3) + abs(b4) + abs(b5) + abs(b6)
+        if a0 - threshold >= 0.0:
+            return lo  # inside from the interval's start on (tmin, or a jump at a chord end)
+        # the hull bound: all control values below T, no root on the interval (clip_roots would say so too)
+        top = max(max(max(a0, a1), max(a2, a3)), max(max(a4, a5), a6))
+        if top - threshold >= 0.0:
+            g[0] = a0 - threshold
+            g[1] = a1 - threshold
+            g[2] = a2 - threshold
+            g[3] = a3 - threshold
+            g[4] = a4 - threshold
+            g[5] = a5 - threshold
+            g[6] = a6 - threshold
+            w = hi - lo
+            eps_g = NOISE * (threshold + (mag / NCOEF) * NCOEF)  # as inside_pieces reads iv_mag
+            n_r = clip_roots(g, tol_t / w, eps_g, st_lo, st_hi, st_c, loc, rising)
+            for j in range(n_r):
+                if rising[j]:
+                    return lo + loc[j] * w
+        ta = tb
+    return np.inf
+
+
+@njit(**NJIT)
+def first_inside(o, d, tmin, tmax, blob, tol_t, cand, n_cand, scratch):
+    """first_entry's answer (the first entering root within [tmin, tmax], tmin if the ray starts inside,
+    inf if it never enters) by the incremental sweep, which stops at the first entry. Returns (scratch, t)."""
+    n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    if n_p > capacity_of(scratch):
+        scratch = alloc_scratch(2 * n_p)
+        gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    if n_p == 0:
+        return scratch, np.inf
+    return scratch, sweep_first_inside(n_p, blob.threshold, tmin, tmax, tol_t, scratch)
