@@ -1,0 +1,85 @@
+"""validation/mitsuba_peer.py's pure-Python helpers (no Mitsuba needed): the voxel grid Mitsuba reads holds
+cloudmeta's own sigma_t at the voxel centres, in Mitsuba's layout, and the conventions it converts."""
+import math
+
+import numpy as np
+import pytest
+
+import cloudmeta as cm
+from cloudmeta.inspect import sigma_t
+from validation import mitsuba_peer as mp
+
+SCENE = """
+image: {width: 8, height: 6, spp: 1}
+camera: {position: [0, -10, 0], look_at: [0, 0, 0], up: [0, 0, 1], fov: 30}
+background: [0.2, 0.3, 0.6]
+ambient: [0.1, 0.1, 0.1]
+lights:
+  - {type: directional, direction: [0.6, -0.8, 0.0], irradiance: 2.0}
+media:
+  - name: puff
+    kernel: wyvill6
+    threshold: 0.4
+    density: {mode: field, scale: 3.0}
+    albedo: 0.9
+    phase: {type: hg, g: 0.5}
+    balls:
+      - {center: [0, 0, 0], radius: 1.5, weight: 1.0}
+      - {center: [1.1, 0.2, 0.3], radii: [1.2, 0.7, 0.6], rotation: [0, 20, 40], weight: 0.9}
+"""
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    path = tmp_path_factory.mktemp("mitsuba") / "puff.yaml"
+    path.write_text(SCENE)
+    return cm.load_scene(path)
+
+
+def test_voxel_geometry_covers_the_box_with_cubic_voxels():
+    lo, hi = np.array([-1.0, 0.0, 2.0]), np.array([3.0, 1.0, 2.5])
+    origin, h, dims = mp.voxel_geometry(lo, hi, 16)
+    assert h == pytest.approx(0.25)
+    assert dims.tolist() == [16, 4, 2]
+    assert np.all(origin <= lo + 1e-12) and np.all(origin + dims * h >= hi - 1e-12)
+    np.testing.assert_allclose(origin + 0.5 * dims * h, 0.5 * (lo + hi))
+
+
+def test_voxel_centres_order_is_z_y_x():
+    origin, h, dims = np.zeros(3), 0.5, np.array([4, 3, 2])
+    c = mp.voxel_centres(origin, h, dims)
+    assert c.shape == (2, 3, 4, 3)
+    np.testing.assert_allclose(c[1, 2, 3], [3.5 * h, 2.5 * h, 1.5 * h])
+
+
+def test_voxelise_is_cloudmeta_sigma_t_at_the_centres(scene):
+    sigma, origin, h, dims = mp.voxelise(scene, 20)
+    assert sigma.dtype == np.float32 and sigma.shape == (dims[2], dims[1], dims[0])
+    centres = mp.voxel_centres(origin, h, dims).reshape(-1, 3)
+    medium = scene.media[0]
+    expected = sigma_t(medium, cm.field(medium.blob, centres)).reshape(sigma.shape)
+    np.testing.assert_allclose(sigma, expected, rtol=1e-6, atol=1e-6)
+    assert sigma.max() > medium.density.scale * medium.blob.threshold  # the grid does meet the inside
+    assert np.count_nonzero(sigma) > 0.05 * sigma.size
+    # the box holds every ball's support: the outermost voxels are outside the medium
+    assert sigma[0].max() == 0 and sigma[-1].max() == 0 and sigma[:, :, 0].max() == 0
+
+
+def test_light_direction_is_the_way_light_travels():
+    assert mp.mitsuba_light_direction(np.array([0.6, -0.8, 0.0])) == [-0.6, 0.8, -0.0]
+
+
+def test_multiple_scene_drops_ambient(scene):
+    s = mp.multiple_scene(scene, 4, 32, 500)
+    assert s.ambient is None and s.image.spp == 4
+    assert (s.render.scattering, s.render.ms_spp, s.render.max_order) == ("multiple", 32, 500)
+    assert scene.ambient is not None  # the input scene is untouched
+
+
+def test_noise_of_pair_is_per_image_noise():
+    rng = np.random.default_rng(3)
+    a = 1.0 + 0.1 * rng.standard_normal((64, 64, 3))
+    b = 1.0 + 0.1 * rng.standard_normal((64, 64, 3))
+    assert mp.noise_of_pair(a, b) == pytest.approx(0.1, rel=0.03)
+    assert mp.rel_rmse(a, a, 1.0) == 0.0
+    assert math.isclose(mp.rel_rmse(a, a + 0.5, 2.0), 0.25)
