@@ -366,6 +366,8 @@ def _fmt(v):
 
 
 def print_table(title, rows, keys):
+    if not rows:
+        return
     print(title)
     widths = [max(len(k), *(len(_fmt(r.get(k, ""))) for r in rows)) for k in keys]
     print("  " + "  ".join(k.rjust(w) for k, w in zip(keys, widths)))
