@@ -112,3 +112,11 @@ def test_agreement_sees_a_bias_the_noise_hides_per_pixel():
     assert r["rel_mean"] == pytest.approx(0.01, abs=4 * r["se_rel_mean"])
     assert r["block_noise_rel"] == pytest.approx(r["noise_rel"] / mp.BLOCK)
     assert r["block_bias_rel"] == pytest.approx(0.01, abs=0.005)
+
+
+def test_calibrate_is_linear_and_never_runs_away():
+    n, per, fixed = mp.calibrate(lambda k: 1.0 + 0.5 * k, 11.0, 4, 10 ** 6)
+    assert (n, per, fixed) == (20, 0.5, 1.0)
+    # a flat clock (noise, or all fixed cost) must not give the cap
+    n, _, _ = mp.calibrate(lambda k: 2.0, 10.0, 4, 10 ** 6)
+    assert n < 200  # ~ 2 x budget / (mean cost at 4 start), far below the cap

@@ -314,7 +314,9 @@ def calibrate(fn, target, start, cap):
     count beyond a fixed cost, measured at start and 4 start)."""
     t1 = fn(start)
     t2 = fn(4 * start)
-    per = max((t2 - t1) / (3 * start), 1e-9)
+    # at least half the mean cost at 4 start: timing noise (or a fixed cost that dwarfs the samples) must
+    # not make the slope ~0 and the count the cap
+    per = max((t2 - t1) / (3 * start), 0.5 * t2 / (4 * start))
     fixed = max(t1 - per * start, 0.0)
     n = int(max(1, min(cap, round((target - fixed) / per))))
     return n, per, fixed
