@@ -256,6 +256,45 @@ def advance_active(ta, p_t0, p_t1, order, act, n_act, i_s, n):
     return n_act, i_s
 
 
+@njit(**NJIT_INLINE)
+def add_active(lo, hi, act, n_act, p_t0, p_t1, p_c):
+    """F's control values on [lo, hi] (and their summed magnitude): the active chords' curves cut to
+    [lo, hi] and added in the order of act. Each chord keeps the rest of its curve, [hi, t1], in place of
+    its control values (p_t0 becomes hi). Scalars and 2-D indexing only: array views here cost more than
+    the arithmetic. (composite and sweep_first_inside share it, so both add the same numbers.)"""
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = 0.0
+    mag = 0.0
+    for m in range(n_act):
+        i = act[m]
+        r0, r1, r2, r3, r4, r5, r6 = p_c[i, 0], p_c[i, 1], p_c[i, 2], p_c[i, 3], p_c[i, 4], p_c[i, 5], p_c[i, 6]
+        if lo > p_t0[i]:  # the ray starts inside this chord (tmin): drop what lies before
+            _, (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(r0, r1, r2, r3, r4, r5, r6,
+                                                              (lo - p_t0[i]) / (p_t1[i] - p_t0[i]))
+            p_t0[i] = lo
+        if hi < p_t1[i]:
+            (b0, b1, b2, b3, b4, b5, b6), (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(
+                r0, r1, r2, r3, r4, r5, r6, (hi - lo) / (p_t1[i] - lo))
+            p_t0[i] = hi
+            p_c[i, 0] = r0
+            p_c[i, 1] = r1
+            p_c[i, 2] = r2
+            p_c[i, 3] = r3
+            p_c[i, 4] = r4
+            p_c[i, 5] = r5
+            p_c[i, 6] = r6
+        else:
+            b0, b1, b2, b3, b4, b5, b6 = r0, r1, r2, r3, r4, r5, r6
+        a0 += b0
+        a1 += b1
+        a2 += b2
+        a3 += b3
+        a4 += b4
+        a5 += b5
+        a6 += b6
+        mag += abs(b0) + abs(b1) + abs(b2) + abs(b3) + abs(b4) + abs(b5) + abs(b6)
+    return a0, a1, a2, a3, a4, a5, a6, mag
+
+
 @njit(**NJIT)
 def composite(n_p, tmin, tmax, scratch):
     """Cut every chord's curve to the intervals between consecutive chord ends and add them up.
@@ -284,37 +323,7 @@ def composite(n_p, tmin, tmax, scratch):
         hi = min(tb, tmax)
         if n_act == 0 or hi <= lo:
             continue
-        # scalars and 2-D indexing only: array views in this loop cost more than the arithmetic
-        a0 = a1 = a2 = a3 = a4 = a5 = a6 = 0.0
-        mag = 0.0
-        for m in range(n_act):
-            i = act[m]
-            r0, r1, r2, r3, r4, r5, r6 = p_c[i, 0], p_c[i, 1], p_c[i, 2], p_c[i, 3], p_c[i, 4], p_c[i, 5], p_c[i, 6]
-            if lo > p_t0[i]:  # the ray starts inside this chord (tmin): drop what lies before
-                _, (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(r0, r1, r2, r3, r4, r5, r6,
-                                                                  (lo - p_t0[i]) / (p_t1[i] - p_t0[i]))
-                p_t0[i] = lo
-            if hi < p_t1[i]:
-                (b0, b1, b2, b3, b4, b5, b6), (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(
-                    r0, r1, r2, r3, r4, r5, r6, (hi - lo) / (p_t1[i] - lo))
-                p_t0[i] = hi
-                p_c[i, 0] = r0
-                p_c[i, 1] = r1
-                p_c[i, 2] = r2
-                p_c[i, 3] = r3
-                p_c[i, 4] = r4
-                p_c[i, 5] = r5
-                p_c[i, 6] = r6
-            else:
-                b0, b1, b2, b3, b4, b5, b6 = r0, r1, r2, r3, r4, r5, r6
-            a0 += b0
-            a1 += b1
-            a2 += b2
-            a3 += b3
-            a4 += b4
-            a5 += b5
-            a6 += b6
-            mag += abs(b0) + abs(b1) + abs(b2) + abs(b3) + abs(b4) + abs(b5) + abs(b6)
+        a0, a1, a2, a3, a4, a5, a6, mag = add_active(lo, hi, act, n_act, p_t0, p_t1, p_c)
         iv_c[n_iv, 0] = a0
         iv_c[n_iv, 1] = a1
         iv_c[n_iv, 2] = a2
@@ -549,37 +558,7 @@ def sweep_first_inside(n_p, threshold, tmin, tmax, tol_t, scratch):
         if hi <= lo:  # before tmin
             ta = tb
             continue
-        # composite's loop body for one interval, unchanged (scalars and 2-D indexing only)
-        a0 = a1 = a2 = a3 = a4 = a5 = a6 = 0.0
-        mag = 0.0
-        for m in range(n_act):
-            i = act[m]
-            r0, r1, r2, r3, r4, r5, r6 = p_c[i, 0], p_c[i, 1], p_c[i, 2], p_c[i, 3], p_c[i, 4], p_c[i, 5], p_c[i, 6]
-            if lo > p_t0[i]:  # the ray starts inside this chord (tmin): drop what lies before
-                _, (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(r0, r1, r2, r3, r4, r5, r6,
-                                                                  (lo - p_t0[i]) / (p_t1[i] - p_t0[i]))
-                p_t0[i] = lo
-            if hi < p_t1[i]:
-                (b0, b1, b2, b3, b4, b5, b6), (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(
-                    r0, r1, r2, r3, r4, r5, r6, (hi - lo) / (p_t1[i] - lo))
-                p_t0[i] = hi
-                p_c[i, 0] = r0
-                p_c[i, 1] = r1
-                p_c[i, 2] = r2
-                p_c[i, 3] = r3
-                p_c[i, 4] = r4
-                p_c[i, 5] = r5
-                p_c[i, 6] = r6
-            else:
-                b0, b1, b2, b3, b4, b5, b6 = r0, r1, r2, r3, r4, r5, r6
-            a0 += b0
-            a1 += b1
-            a2 += b2
-            a3 += b3
-            a4 += b4
-            a5 += b5
-            a6 += b6
-            mag += abs(b0) + abs(b1) + abs(b2) + abs(b3) + abs(b4) + abs(b5) + abs(b6)
+        a0, a1, a2, a3, a4, a5, a6, mag = add_active(lo, hi, act, n_act, p_t0, p_t1, p_c)
         if a0 - threshold >= 0.0:
             return lo  # inside from the interval's start on (tmin, or a jump at a chord end)
         # the hull bound: all control values below T, no root on the interval (clip_roots would say so too)
