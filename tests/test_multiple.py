@@ -10,7 +10,7 @@ import cloudmeta as cm
 from cloudmeta.errors import SceneError
 from cloudmeta.kernels.bernstein import bernstein_cumulative
 from cloudmeta.kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH, phase
-from cloudmeta.kernels.sampling import free_flight, sample_phase_cos, turn, uniform
+from cloudmeta.kernels.sampling import free_flight, owen_scramble, sample_phase_cos, sobol4, turn, uniform, SOBOL_V
 from cloudmeta.multiple import render_multiple
 
 FURNACE = """
@@ -149,6 +149,63 @@ def test_uniform_stream_is_keyed_and_uniform():
     assert x.min() >= 0.0 and x.max() < 1.0
     assert x.mean() == pytest.approx(0.5, abs=0.01)
     assert np.corrcoef(x[:-1], x[1:])[0, 1] == pytest.approx(0.0, abs=0.03)
+
+
+def _sobol_unscrambled(n):
+    """Sobol's first four dimensions at indices 0 .. n - 1, straight from the direction numbers."""
+    out = np.zeros((n, 4))
+    for i in range(n):
+        for d in range(4):
+            v, k, j = 0, 0, i
+            while j:
+                if j & 1:
+                    v ^= int(SOBOL_V[d, k])
+                j >>= 1
+                k += 1
+            out[i, d] = v / 2.0 ** 32
+    return out
+
+
+def test_sobol_direction_numbers_match_scipy():
+    """The same point sets as scipy's Sobol (Joe-Kuo numbers); scipy enumerates them in Gray-code order, so
+    every aligned block of 2^m points is compared as a set."""
+    qmc = pytest.importorskip("scipy.stats.qmc")
+    ref = qmc.Sobol(4, scramble=False).random(1024)
+    mine = _sobol_unscrambled(1024)
+    for m in (4, 7, 10):
+        n = 2 ** m
+        assert np.array_equal(np.sort(mine[:n], axis=0), np.sort(ref[:n], axis=0))
+        assert np.array_equal(mine[:n][np.lexsort(mine[:n].T)], ref[:n][np.lexsort(ref[:n].T)])
+
+
+def test_owen_scramble_is_a_nested_permutation():
+    """Owen scrambling permutes each binary digit as a function of the digits above it: it is a bijection on
+    every aligned block of 2^k fractions of width 2^-k ... so a stratified set stays stratified."""
+    rng = np.random.default_rng(5)
+    for seed in rng.integers(0, 2 ** 32, 4):
+        x = np.arange(256, dtype=np.uint64) << np.uint64(24)  # 256 equal strata of [0, 1)
+        y = np.array([owen_scramble(v, np.uint64(seed)) for v in x], dtype=np.uint64)
+        assert len(set((y >> np.uint64(24)).tolist())) == 256  # still one point per stratum
+        # values sharing their top k digits still share them after scrambling
+        top = y[:128] >> np.uint64(31)
+        assert len(set(top.tolist())) == 1
+
+
+def test_sobol4_is_a_scrambled_net_per_pixel_and_block():
+    """The first 2^m paths of a pixel's block: one point in each of 2^m equal slices of every dimension and
+    in each 16 x 16 cell of dimensions 0 and 1 (a (0, 2)-net); other pixels and blocks differ."""
+    pts = np.array([sobol4(3, 17, p, 2) for p in range(256)])
+    assert pts.min() >= 0.0 and pts.max() < 1.0
+    for d in range(4):
+        assert np.all(np.histogram(pts[:, d], bins=256, range=(0, 1))[0] == 1)
+    cells = np.histogram2d(pts[:, 0], pts[:, 1], bins=16, range=[[0, 1], [0, 1]])[0]
+    assert np.all(cells == 1)
+    assert sobol4(3, 17, 5, 2) == sobol4(3, 17, 5, 2)
+    for key in [(4, 17, 5, 2), (3, 18, 5, 2), (3, 17, 5, 3)]:
+        assert sobol4(*key) != sobol4(3, 17, 5, 2)
+    # two blocks of one pixel are not paired point for point
+    other = np.array([sobol4(3, 17, p, 3) for p in range(256)])
+    assert abs(np.corrcoef(pts[:, 0], other[:, 0])[0, 1]) < 0.2
 
 
 # ------------------------------------------------------------------------------------------ renders

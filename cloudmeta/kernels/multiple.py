@@ -24,8 +24,9 @@ exactly; these paths add what it does not count:
   ``max_order``.
 - Opaque surfaces end a path (they are black to multiply scattered light; see README).
 
-Random numbers come from sampling.uniform keyed by (pixel, path, vertex, dimension): a pixel's result
-does not depend on any other pixel, nor on the threads.
+Random numbers: each vertex's flight, lobe and direction come from the quasi-random stream sampling.sobol4
+keyed by (seed, pixel, path, vertex), the medium and the roulette from sampling.uniform keyed by (seed, pixel,
+path, vertex, dimension): a pixel's result does not depend on any other pixel, nor on the threads.
 
 The scene is the records.SceneRecords that cloudmeta.render packs for the single-scattering renderer
 (one packing for both estimators), the quadrature record gives the root tolerance, and one thread's
@@ -46,15 +47,12 @@ from .bvh import misses_root_boxes
 from .features import surface_hit
 from .radiance import alloc_ray_work, camera_ray, elementary_intervals, light_at_node
 from .records import RayWork
-from .sampling import free_flight, sample_phase_cos, turn, uniform
+from .sampling import free_flight, sample_phase_cos, sobol4, turn, uniform
 
-#: random dimensions of one vertex (the stream's last key)
-DIM_FLIGHT = 0
+#: the independent random dimensions of one vertex (the stream's last key); the flight, the phase's lobe
+#: and its direction come from the vertex's block of the quasi-random stream (sampling.sobol4)
 DIM_MEDIUM = 1
 DIM_ROULETTE = 2
-DIM_LOBE = 3
-DIM_COS = 4
-DIM_PHI = 5
 #: a shadow ray stops once its optical depth passes this (T < 2e-22)
 TAU_STOP = 50.0
 
@@ -186,7 +184,7 @@ def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, vectors, out):
         if n_vert == max_order or n_el == 0:
             break
         # a forced collision inside the segment: the flight's target depth is drawn in [0, U)
-        xi = uniform(seed, pixel, path, n_vert, DIM_FLIGHT)
+        xi, u_cos, u_phi, u_lobe = sobol4(seed, pixel, path, n_vert)
         escape = -math.expm1(-u_total)
         weight *= escape
         k, s, t = locate_depth(-math.log1p(-xi * escape), n_el, work.pieces)
@@ -207,9 +205,8 @@ def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, vectors, out):
                 break
             weight /= survive
         ph = scene.media.phase[m]
-        cos_theta = sample_phase_cos(ph[0], ph[1], ph[2], ph[3], uniform(seed, pixel, path, n_vert, DIM_LOBE),
-                                     uniform(seed, pixel, path, n_vert, DIM_COS))
-        turn(d, cos_theta, uniform(seed, pixel, path, n_vert, DIM_PHI), d_new)
+        cos_theta = sample_phase_cos(ph[0], ph[1], ph[2], ph[3], u_lobe, u_cos)
+        turn(d, cos_theta, u_phi, d_new)
         for c in range(3):
             d[c] = d_new[c]
     return work

@@ -6,6 +6,12 @@
 - ``sample_phase_cos``: cos theta of a new direction drawn exactly from each phase function of MODEL.md §4
   (HG by inversion of its CDF, double HG by its lobe, Rayleigh by the real root of its CDF's cubic,
   isotropic), with cos theta = d' . d, d the incoming propagation direction (so g > 0 keeps going forward).
+- ``sobol4``: four numbers of the randomised quasi-Monte Carlo stream for (seed, pixel, path, block): the
+  first four dimensions of Sobol's sequence (Joe and Kuo's direction numbers), with the path index
+  shuffled and every dimension Owen-scrambled by hashes of (seed, pixel, block, dimension) (Burley 2020,
+  "Practical hash-based Owen scrambling"; the "padded" Sobol sampler of pbrt-v4). Within one pixel and one
+  block the paths' points are a scrambled (t, m, 4)-net, so the integrand's smooth part averages out
+  faster than with independent numbers; across blocks, pixels and seeds they are independent.
 - ``free_flight``: the distance at which the exact optical depth of a Bernstein piece reaches a target
   (Newton on the exact antiderivative, kept in a bisection bracket).
 """
@@ -19,6 +25,30 @@ from .bernstein import bernstein_cumulative, bernstein_eval
 from .optics import DOUBLE_HG, HG, RAYLEIGH
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M32 = np.uint64(0xFFFFFFFF)
+
+
+def _sobol_matrices(bits=32):
+    """The direction numbers v_k (k = 1 .. bits, as 32-bit integers) of Sobol's first four dimensions:
+    dimension 0 is van der Corput's; 1-3 follow Joe and Kuo's table (new-joe-kuo-6.21201: s, a, m_i =
+    (1, 0, 1), (2, 1, 1 3), (3, 1, 1 3 1)) through the recurrence of Bratley and Fox. Checked against
+    scipy.stats.qmc.Sobol in the tests."""
+    table = [(0, 0, ()), (1, 0, (1,)), (2, 1, (1, 3)), (3, 1, (1, 3, 1))]
+    out = np.zeros((4, bits), dtype=np.uint64)
+    for dim, (s, a, m_init) in enumerate(table):
+        m = [1] * bits if dim == 0 else list(m_init)
+        for k in range(len(m), bits):
+            new = m[k - s] ^ (m[k - s] << s)
+            for j in range(1, s):
+                if (a >> (s - 1 - j)) & 1:
+                    new ^= m[k - j] << j
+            m.append(new)
+        for k in range(bits):
+            out[dim, k] = m[k] << (bits - 1 - k)
+    return out
+
+
+SOBOL_V = _sobol_matrices()
 #: below this |g| the HG inversion loses digits (it divides by g): sample isotropically, the difference
 #: in the phase function is below 3|g|
 _G_ISOTROPIC = 1e-6
@@ -41,6 +71,65 @@ def uniform(seed, pixel, sample, order, dim):
     z = mix64(z + np.uint64(order) * _GOLDEN)
     z = mix64(z + np.uint64(dim) * _GOLDEN + np.uint64(1))
     return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(**NJIT_INLINE)
+def _reverse_bits32(v):
+    v = ((v >> np.uint64(1)) & np.uint64(0x55555555)) | ((v & np.uint64(0x55555555)) << np.uint64(1))
+    v = ((v >> np.uint64(2)) & np.uint64(0x33333333)) | ((v & np.uint64(0x33333333)) << np.uint64(2))
+    v = ((v >> np.uint64(4)) & np.uint64(0x0F0F0F0F)) | ((v & np.uint64(0x0F0F0F0F)) << np.uint64(4))
+    v = ((v >> np.uint64(8)) & np.uint64(0x00FF00FF)) | ((v & np.uint64(0x00FF00FF)) << np.uint64(8))
+    return ((v >> np.uint64(16)) & np.uint64(0xFFFF)) | ((v & np.uint64(0xFFFF)) << np.uint64(16))
+
+
+@njit(**NJIT)
+def owen_scramble(v, seed):
+    """A nested uniform (Owen) scramble of the 32-bit fraction v, keyed by the 32-bit seed: in bit-reversed
+    order every step changes a bit only as a function of the bits below it (Laine and Karras's
+    permutation with Burley's constants), so each digit of v is permuted as a function of the digits
+    above it, which is Owen's scrambling, with a hash for its random permutations."""
+    v = _reverse_bits32(v)
+    v ^= (v * np.uint64(0x3D20ADEA)) & _M32
+    v = (v + seed) & _M32
+    v = (v * ((seed >> np.uint64(16)) | np.uint64(1))) & _M32
+    v ^= (v * np.uint64(0x05526C56)) & _M32
+    v ^= (v * np.uint64(0x53A22864)) & _M32
+    return _reverse_bits32(v)
+
+
+@njit(**NJIT_INLINE)
+def _sobol32(index, dim):
+    v = np.uint64(0)
+    k = 0
+    while index != np.uint64(0):
+        if index & np.uint64(1):
+            v ^= SOBOL_V[dim, k]
+        index >>= np.uint64(1)
+        k += 1
+    return v
+
+
+@njit(**NJIT_INLINE)
+def _key32(seed, pixel, block, dim):
+    z = mix64(np.uint64(seed) * _GOLDEN + np.uint64(pixel))
+    z = mix64(z + np.uint64(block) * _GOLDEN + np.uint64(0x51ED27))
+    z = mix64(z + np.uint64(dim) * _GOLDEN + np.uint64(1))
+    return z >> np.uint64(32)
+
+
+@njit(**NJIT)
+def sobol4(seed, pixel, path, block):
+    """Four numbers in [0, 1) for path ``path`` of a pixel, in block ``block`` (one vertex of the path):
+    Sobol's first four dimensions at the path's index shuffled by an Owen scramble of its bits (for the
+    first 2^m paths, a permutation of one aligned block of 2^m indices, so they stay a net), each
+    dimension Owen-scrambled on its own. Keyed by (seed, pixel, block) alone: threads cannot change it."""
+    shuffled = owen_scramble(np.uint64(path) & _M32, _key32(seed, pixel, block, 4))
+    scale = 1.0 / 4294967296.0
+    u0 = float(owen_scramble(_sobol32(shuffled, 0), _key32(seed, pixel, block, 0))) * scale
+    u1 = float(owen_scramble(_sobol32(shuffled, 1), _key32(seed, pixel, block, 1))) * scale
+    u2 = float(owen_scramble(_sobol32(shuffled, 2), _key32(seed, pixel, block, 2))) * scale
+    u3 = float(owen_scramble(_sobol32(shuffled, 3), _key32(seed, pixel, block, 3))) * scale
+    return u0, u1, u2, u3
 
 
 @njit(**NJIT)
