@@ -186,6 +186,34 @@ def rays_per_second(n_rays):
     return camera, shadow
 
 
+def issue11(report, repeats, size=512):
+    """Issue #11's speed figures: the cumulus front-lit (scenes/cumulus.yaml) and back-lit
+    (scenes/cumulus_backlit.yaml) at size^2, ``default``, exact shadows, each against the same render with
+    its lights removed (the view rays alone), alternating lit and lightless; and the 1,200-ball bank
+    (scenes/dense_1000.yaml). Render time inside one process (kernels loaded outside the clock); median and
+    spread of ``repeats`` renders each."""
+    from dataclasses import replace
+
+    cases = [("cumulus front-lit", ROOT / "scenes" / "cumulus.yaml"),
+             ("cumulus back-lit", ROOT / "scenes" / "cumulus_backlit.yaml"),
+             ("bank, 1,200 balls", ROOT / "scenes" / "dense_1000.yaml")]
+    for label, path in cases:
+        lit = with_quality(cm.load_scene(path, width=size, height=size), quality="default", shadows="exact")
+        dark = replace(lit, lights=())
+        cm.render(cm.load_scene(path, width=4, height=4), progress=False)  # load the kernels outside the clock
+        cm.render(replace(cm.load_scene(path, width=4, height=4), lights=()), progress=False)
+        t_lit, t_dark = [], []
+        for _ in range(repeats):
+            t_lit.append(timed(lit)[1])
+            t_dark.append(timed(dark)[1])
+        med_lit, med_dark = statistics.median(t_lit), statistics.median(t_dark)
+        report(f"{label} {size}^2 default exact: render time, median", med_lit, "s")
+        report(f"  spread (min-max) of {repeats}: {min(t_lit):.2f}-{max(t_lit):.2f} s", max(t_lit) - min(t_lit), "s")
+        report(f"{label} {size}^2 without lights: render time, median", med_dark, "s")
+        report(f"  spread (min-max) of {repeats}: {min(t_dark):.2f}-{max(t_dark):.2f} s", max(t_dark) - min(t_dark), "s")
+        report(f"{label}: lit / lightless (issue #11: at most 3x)", med_lit / med_dark, "x")
+
+
 def main(argv=None, quick=False):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", type=int, default=512)
@@ -196,6 +224,7 @@ def main(argv=None, quick=False):
     ap.add_argument("--cold", action="store_true", help="also the first render from an empty cache (minutes)")
     ap.add_argument("--peer", action="store_true", help="also the POV-Ray comparison (needs povray)")
     ap.add_argument("--startup", action="store_true", help="only issue #14's figures")
+    ap.add_argument("--issue11", action="store_true", help="only issue #11's speed figures (lit against lightless)")
     args = ap.parse_args(argv)
     quick = quick or args.quick
     size, scale_size = (32, 24) if quick else (args.size, args.scale_size)
@@ -206,6 +235,9 @@ def main(argv=None, quick=False):
         rows.append(dict(what=what, value=value, unit=unit))
         print(f"{what:62s} {value:12.4g} {unit}", flush=True)
 
+    if args.issue11:
+        issue11(report, 3 if quick else min(args.repeats, 5), size)
+        return dict(rows=rows, passed=True)
     issue14(report, 3 if quick else args.repeats, args.against, args.cold, args.peer)
     if args.startup:
         return dict(rows=rows, passed=True)
