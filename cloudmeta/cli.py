@@ -99,7 +99,7 @@ def compile_notice(note=""):
     from .config import is_compiled
     from .kernels.radiance import render_pixels
     if not is_compiled(render_pixels):
-        print(f"cloudmeta: compiling the kernels for this machine (once per kind of scene, 2-3 minutes, then cached"
+        print(f"cloudmeta: compiling the kernels for this machine (once per kind of scene, about a minute on an idle core, then cached"
               f"{'; ' + note if note else ''})", flush=True)
 
 

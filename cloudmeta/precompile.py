@@ -1,6 +1,6 @@
 """Compile the kernels ahead of the first render: ``cloudmeta compile [--jobs N]``.
 
-The first render on a machine compiles its kernels (2-3 minutes of one core each, then cached; README
+The first render on a machine compiles its kernels (0.5-1.5 minutes of one core each, then cached; README
 "Compilation cache"). A render compiles only what its scene needs (kernels.features), so a fresh machine
 pays again for the first scene of each kind. This compiles every kind at once, in ``jobs`` processes side by
 side: for a worker image, before a Dask cluster starts, or before a test run. Each job renders a tiny scene
