@@ -47,10 +47,12 @@ def medium_pieces(o, d, tmax, med, m, tol_t, scratch, cand, stack):
 def grow_ray_pieces(rp, n, need, n_med):
     """A RayPieces with room for 2 * need pieces holding the first n pieces of rp."""
     bigger = alloc_ray_pieces(2 * need, n_med)
-    bigger.t0[:n] = rp.t0[:n]
-    bigger.t1[:n] = rp.t1[:n]
-    bigger.c[:n] = rp.c[:n]
-    bigger.medium[:n] = rp.medium[:n]
+    for k in range(n):  # element loops: a slice copy compiles numba's shape-mismatch error path (~1.5 s)
+        bigger.t0[k] = rp.t0[k]
+        bigger.t1[k] = rp.t1[k]
+        bigger.medium[k] = rp.medium[k]
+        for q in range(bigger.c.shape[1]):
+            bigger.c[k, q] = rp.c[k, q]
     return bigger
 
 

@@ -453,7 +453,7 @@ def in_scattering(o, d, n_el, scene, quad, work, out):
     The quadrature runs over each inside segment (a run of adjacent intervals) as a whole, so that chord
     ends, which the light does not see, cost no nodes. Returns work."""
     j_max = 0.0
-    k_a = 0
+    k_a = np.int64(0)  # not the literal 0: _depth_at would compile once more for Literal[int](0)
     scratch = work.scratch
     while k_a < n_el and work.pieces.el_u0[k_a] < quad.u_stop:
         k_b = segment_end(work.pieces, k_a, n_el)
@@ -572,7 +572,8 @@ def alloc_ray_work(scene):
     (both grow when a ray needs more), the candidate list (room for the most balls of media or of
     surfaces), the BVH stack and the node work vectors."""
     n_balls = max(scene.media.centers.shape[0], surface_balls(scene.surfaces))
-    return RayWork(alloc_scratch(64), alloc_ray_pieces(64, n_media(scene.media)),
+    # np.int64: the literal 64 would compile both allocators once more for Literal[int](64)
+    return RayWork(alloc_scratch(np.int64(64)), alloc_ray_pieces(np.int64(64), n_media(scene.media)),
                    np.empty(max(n_balls, 1), np.int64), np.empty(2 * STACK, np.int64),
                    alloc_node_work(scene.lights.kind.shape[0]))
 
@@ -587,8 +588,8 @@ def camera_ray(camera, i, j, s, strata, d):
         jy = 0.5
     else:
         pix = i * width + j
-        jx = ((s % strata) + jitter(camera.seed, pix, s, 0)) / strata
-        jy = (((s // strata) % strata) + jitter(camera.seed, pix, s, 1)) / strata
+        jx = ((s % strata) + jitter(camera.seed, pix, s, np.int64(0))) / strata
+        jy = (((s // strata) % strata) + jitter(camera.seed, pix, s, np.int64(1))) / strata
     x = 2.0 * (j + jx) / width - 1.0
     y = 1.0 - 2.0 * (i + jy) / height
     for c in range(3):

@@ -35,8 +35,8 @@ def trace_texel_chunk(geo, res, med, tol_t, chunk, n_chunks, cap, counts, used, 
     cap tells the caller to call again with a larger cap (the chunk's rows are then incomplete). nogil,
     with its own work arrays: cloudmeta.pack runs the chunks on several threads."""
     n = res * res
-    scratch = alloc_scratch(64)
-    rp = alloc_ray_pieces(64, med.start.shape[0] - 1)
+    scratch = alloc_scratch(np.int64(64))
+    rp = alloc_ray_pieces(np.int64(64), med.start.shape[0] - 1)
     cand = np.empty(max(med.centers.shape[0], 1), np.int64)
     stack = np.empty(128, np.int64)
     order = np.empty(64, np.int64)

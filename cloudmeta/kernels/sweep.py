@@ -66,7 +66,7 @@ def heap_argsort(keys, idx, n):
         _sift(keys, idx, start, n)
     for end in range(n - 1, 0, -1):
         idx[0], idx[end] = idx[end], idx[0]
-        _sift(keys, idx, 0, end)
+        _sift(keys, idx, np.int64(0), end)  # np.int64: one signature, not one for Literal[int](0)
 
 
 @njit(**NJIT_INLINE)
@@ -120,7 +120,7 @@ def heap_sort(a, n):
         _sift_values(a, start, n)
     for end in range(n - 1, 0, -1):
         a[0], a[end] = a[end], a[0]
-        _sift_values(a, 0, end)
+        _sift_values(a, np.int64(0), end)
 
 
 @njit(**NJIT)
@@ -352,7 +352,7 @@ def inside_pieces(n_iv, threshold, tmin, tmax, tol_t, first_only, scratch):
     o_t0, o_t1, o_c, roots = scratch.out_t0, scratch.out_t1, scratch.out_c, scratch.roots
     st_lo, st_hi, st_c, g = scratch.st_lo, scratch.st_hi, scratch.st_c, scratch.g
     loc, rising = scratch.loc, scratch.rising
-    n_out = 0
+    n_out = np.int64(0)  # not the literal 0: _emit would compile once more for Literal[int](0)
     n_roots = 0
     inside = False
     t_prev = tmin  # where the last interval ended; F = 0 < T in gaps
