@@ -158,11 +158,13 @@ def next_event(x, d, k, s, scene, tol_t, work, out):
 
 
 @njit(**NJIT)
-def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, vectors, out):
+def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work, vectors, out):
     """out[:3] = one path's estimate of the radiance the deterministic renderer leaves out (orders >= 2
     of the lights, orders >= 1 of the environment) along the camera ray o_cam + t d_cam.
-    key = (seed, pixel, path); settings a records.PathSettings; vectors = (o, d, d_new, light), four 3-vectors of work. Returns work,
-    grown if a ray needed more room."""
+    key = (seed, pixel, path); camera_segment = (its elementary intervals, their number, their optical
+    depth): trace_segment of the camera ray, traced once for all the paths that start on it; settings a
+    records.PathSettings; vectors = (o, d, d_new, light), four 3-vectors of work. Returns work, grown if a
+    ray needed more room."""
     seed, pixel, path = key
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
     background = scene.background
@@ -176,7 +178,12 @@ def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, vectors, out):
     for n_vert in range(max_order + 1):
         if n_vert == max_order and not has_env:
             break
-        work, n_el, u_total, on_surface = trace_segment(o, d, scene, tol_t, work)
+        if n_vert == 0:
+            rp, n_el, u_total = camera_segment
+            on_surface = False  # (the environment is not counted at vertex 0)
+        else:
+            work, n_el, u_total, on_surface = trace_segment(o, d, scene, tol_t, work)
+            rp = work.pieces
         if n_vert > 0 and has_env and not on_surface:
             transmittance = math.exp(-u_total)
             for c in range(3):
@@ -187,7 +194,7 @@ def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, vectors, out):
         xi, u_cos, u_phi, u_lobe = sobol4(seed, pixel, path, n_vert)
         escape = -math.expm1(-u_total)
         weight *= escape
-        k, s, t = locate_depth(-math.log1p(-xi * escape), n_el, work.pieces)
+        k, s, t = locate_depth(-math.log1p(-xi * escape), n_el, rp)
         for c in range(3):
             o[c] = o[c] + t * d[c]
         if n_vert > 0:  # vertex 1 is single scattering: counted exactly by the deterministic renderer
@@ -195,7 +202,7 @@ def path_radiance(o_cam, d_cam, key, scene, quad, settings, work, vectors, out):
             work = next_event(o, d, k, s, scene, tol_t, work, light)
             for c in range(3):
                 out[c] += weight * light[c]
-        ratio, m = scattering_mix(k, s, work.pieces, scene.media, uniform(seed, pixel, path, n_vert, DIM_MEDIUM))
+        ratio, m = scattering_mix(k, s, rp, scene.media, uniform(seed, pixel, path, n_vert, DIM_MEDIUM))
         weight *= ratio
         if weight <= 0.0:
             break
@@ -231,10 +238,13 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
     ``settings.paths`` path estimates into mean (H x W x 3), and its standard error into stderr. Path i
     starts on camera ray i mod spp of the deterministic renderer (radiance.camera_ray), so the two add up
     ray by ray. camera, scene, quad: the records of radiance.render_pixels. nogil, with its own work
-    arrays: cloudmeta.multiple runs bands of rows on several threads."""
+    arrays: cloudmeta.multiple runs bands of rows on several threads. The camera ray's own segment is
+    traced once per ray, into work arrays of its own, for all the paths that start on it (ray by ray:
+    paths r, r + spp, r + 2 spp, ...)."""
     width, spp, paths = camera.width, camera.spp, settings.paths
     strata = int(math.ceil(math.sqrt(spp)))
     work = alloc_ray_work(scene)
+    camera_work = alloc_ray_work(scene)
     vectors = (np.empty(3), np.empty(3), np.empty(3), np.empty(3))
     d = np.empty(3)
     est = np.empty(3)
@@ -243,15 +253,21 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
     for p in range(p0, p1):
         i = row0 + p // width
         j = p % width
-        acc[:] = 0.0
-        acc2[:] = 0.0
-        for path in range(paths):
-            camera_ray(camera, i, j, path % spp, strata, d)
+        for c in range(3):
+            acc[c] = 0.0
+            acc2[c] = 0.0
+        for r in range(min(spp, paths)):
+            camera_ray(camera, i, j, r, strata, d)
             if misses_root_boxes(camera.position, d, scene.media.bvh):
                 continue  # no medium on the camera ray: nothing scatters, the estimate is 0
-            work = path_radiance(camera.position, d, (camera.seed, i * width + j, path), scene, quad, settings,
-                                 work, vectors, est)
-            for c in range(3):
-                acc[c] += est[c]
-                acc2[c] += est[c] * est[c]
+            camera_work, n_el, u_total, _ = trace_segment(camera.position, d, scene, quad.tol_t, camera_work)
+            if n_el == 0:
+                continue
+            segment = (camera_work.pieces, n_el, u_total)
+            for path in range(r, paths, spp):
+                work = path_radiance(camera.position, d, (camera.seed, i * width + j, path), segment, scene, quad,
+                                     settings, work, vectors, est)
+                for c in range(3):
+                    acc[c] += est[c]
+                    acc2[c] += est[c] * est[c]
         _store_mean(acc, acc2, paths, i, j, mean, stderr)
