@@ -119,12 +119,22 @@ def _write_store(path, values):
 
 
 def _stored(key, compute):
-    """``compute()`` (a JSON value: lists of floats round-trip exactly), kept in the store under ``key``."""
+    """``compute()`` (a JSON value: lists of floats round-trip exactly), kept in the store under ``key``.
+    What other processes stored since this one read the file is merged in before the write (the numbers
+    are colour-science's, the same in every process), so that processes side by side (a parallel test
+    run, Dask workers) do not drop each other's entries."""
     values = _values()
     if key not in values:
         values[key] = compute()
         path = _STORE["path"]
         if path is not None:
+            try:
+                on_disk = json.loads(path.read_text())
+            except (OSError, ValueError):
+                on_disk = {}
+            if isinstance(on_disk, dict):
+                for k, v in on_disk.items():
+                    values.setdefault(k, v)
             _write_store(path, values)
     return values[key]
 

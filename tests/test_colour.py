@@ -134,6 +134,23 @@ def test_16_stored_numbers_are_colour_sciences_bit_for_bit(monkeypatch, tmp_path
         colour.RGB_COLOURSPACES[DEFAULT_COLOURSPACE].matrix_XYZ_to_RGB @ xyz, 0.0))
 
 
+def test_16b_processes_side_by_side_keep_each_others_colours(monkeypatch, tmp_path):
+    """Process A reads the store, process B stores a colour, then A stores another: the file keeps both
+    (a lost update made a parallel test run import colour-science again, and its start-up test fail)."""
+    import json
+
+    cc = _fresh_store(monkeypatch, tmp_path)
+    parse_colour([1, 1, 1], "c")  # A: reads the (empty) store, stores the default colourspace
+    store_a = cc._STORE
+    cc = _fresh_store(monkeypatch, tmp_path)
+    parse_colour({"temperature": 5200}, "c")  # B, started after A: stores a blackbody
+    monkeypatch.setattr(cc, "_STORE", store_a)  # back to A, which has not seen B's entry
+    cc._xyz_illuminant.cache_clear()
+    parse_colour({"illuminant": "A"}, "c")  # A stores an illuminant
+    keys = set(json.loads(next(tmp_path.glob("colour-*.json")).read_text()))
+    assert {"blackbody:5200.0", "illuminant:A"} <= keys, keys
+
+
 def test_17_unknown_names_still_fail_with_a_store(monkeypatch, tmp_path):
     _fresh_store(monkeypatch, tmp_path)
     parse_colour([1, 1, 1], "c")
