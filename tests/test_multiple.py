@@ -179,8 +179,8 @@ def test_sobol_direction_numbers_match_scipy():
 
 
 def test_owen_scramble_is_a_nested_permutation():
-    """Owen scrambling permutes each binary digit as a function of the digits above it: it is a bijection on
-    every aligned block of 2^k fractions of width 2^-k ... so a stratified set stays stratified."""
+    """Owen scrambling permutes each binary digit as a function of the digits above it: 256 points, one per
+    stratum of width 2^-8, stay one per stratum, and points that share their leading digit still share one."""
     rng = np.random.default_rng(5)
     for seed in rng.integers(0, 2 ** 32, 4):
         x = np.arange(256, dtype=np.uint64) << np.uint64(24)  # 256 equal strata of [0, 1)
