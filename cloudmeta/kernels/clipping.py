@@ -22,13 +22,10 @@ latency):
   level, and Newton's second polishing step where it could not move the root.
 """
 import numpy as np
-from llvmlite import ir
 from numba import njit
-from numba.core import cgutils, types
-from numba.extending import intrinsic
 
 from ..config import NJIT, NJIT_INLINE
-from .bernstein import _casteljau_rows
+from .bernstein import _casteljau_rows, _fma
 
 #: an iteration that keeps more than this fraction of its interval is stalling (near a multiple root):
 #: split the interval in half instead
@@ -46,21 +43,6 @@ _INF = np.inf
 
 
 # --- the steps of the loop, on the 7 control values as scalars -------------------------------------------
-
-@intrinsic
-def _fma(typingctx, x, y, z):
-    """x * y + z rounded once: LLVM's llvm.fma, the processor's fused multiply-add. IEEE 754's
-    fusedMultiplyAdd, so the same result on every machine (unlike fastmath's optional contraction, which
-    stays off)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        f64 = ir.DoubleType()
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(f64, [f64, f64, f64]),
-                                            "llvm.fma.f64")
-        return builder.call(fn, args)
-    return sig, codegen
-
 
 @njit(**NJIT_INLINE)
 def _no_crossing7(c0, c1, c2, c3, c4, c5, c6):

@@ -9,7 +9,8 @@ from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF
 from .bvh import bvh_candidates
 from .records import BlobRecord, RayPieces
-from .sweep import pieces_optical_depth, rho_value, trace_blob
+from .shadow import blob_optical_depth
+from .sweep import rho_value, trace_blob
 
 
 @njit(**NJIT)
@@ -84,11 +85,16 @@ def collect_media(o, d, tmax, med, tol_t, scratch, rp, cand, stack):
 
 @njit(**NJIT)
 def shadow_transmittance(x, l, tmax, med, tol_t, tau_stop, scratch, cand, stack):
-    """T_l = exp(-tau) from x along l up to tmax through every medium; stops once tau > tau_stop."""
+    """T_l = exp(-tau) from x along l up to tmax through every medium; stops once tau > tau_stop. The
+    depth only, without the pieces (kernels.shadow: the fused sweep)."""
     tau = 0.0
     for m in range(n_media(med)):
-        scratch, n_out = medium_pieces(x, l, tmax, med, m, tol_t, scratch, cand, stack)
-        tau += pieces_optical_depth(n_out, med.mode[m], med.threshold[m], med.scale[m], scratch)
+        n_cand = bvh_candidates(x, l, 0.0, tmax, med.bvh, med.bvh.root[m], stack, cand)
+        if n_cand == 0:
+            continue
+        scratch, tau_m = blob_optical_depth(x, l, 0.0, tmax, medium_blob(med, m), med.mode[m], med.scale[m], tol_t,
+                                            cand, n_cand, scratch)
+        tau += tau_m
         if tau > tau_stop:
             break
     return scratch, math.exp(-tau)

@@ -1,0 +1,131 @@
+"""The optical depth of a shadow ray through one blob, without its pieces: ``sweep.composite``,
+``sweep.inside_pieces`` and ``sweep.pieces_optical_depth`` fused into one pass.
+
+A shadow ray needs one number, tau = scale * int rho over {F >= T}, not the pieces. The full sweep writes
+every composite interval, calls ``clip_roots`` on each, and cuts out every inside piece by two de Casteljau
+splits before it integrates them; on the cumulus a shadow ray has 15 intervals, 11 of them wholly inside
+and about one that straddles T. Here each interval's control values come from the same ``add_active``
+(the same breakpoints, splits and sums as composite), and then:
+
+- the hull above T: wholly inside, its integral is the length times the mean of the control values;
+- the hull below T: wholly outside;
+- otherwise ``clip_roots`` with inside_pieces' rules (a root counts only where the class changes; the
+  class at the interval's start is that of F there), the inside parts integrated by the antiderivative
+  (a degree-7 Bernstein polynomial).
+
+The integral of rho is affine in that of F (MODEL.md §4), so all three density modes come from the
+integral of F and the inside length. The same polynomials and roots as the full sweep, summed in another
+order: the depth agrees to rounding (tests/test_kernels_shadow.py).
+"""
+from numba import njit
+
+from ..config import NJIT, NJIT_INLINE
+from .bernstein import NCOEF, bernstein_cumulative
+from .clipping import clip_roots
+from .sweep import (DENSITY_EXCESS, DENSITY_UNIFORM, NOISE, add_active, advance_active, alloc_scratch, capacity_of,
+                    gather_chords, sort_breakpoints)
+
+
+@njit(**NJIT_INLINE)
+def _antiderivative(g, s, threshold):
+    """int_0^s F, where g holds F - T on the interval."""
+    return bernstein_cumulative(g, s) + threshold * s
+
+
+@njit(**NJIT)
+def straddling_interval(w, threshold, tol_t, mag, scratch):
+    """The inside parts of an interval of length w whose hull straddles T (scratch.g: F - T on it; mag
+    the magnitude of its control values): classes and roots as inside_pieces takes them. Returns (int of F
+    over the inside parts, their length)."""
+    g = scratch.g
+    inside = g[0] >= 0.0  # the class at its start (a jump at a chord end counts)
+    n_r = clip_roots(g, tol_t / w, NOISE * (threshold + mag), scratch.st_lo, scratch.st_hi, scratch.st_c,
+                     scratch.loc, scratch.rising)
+    f_int = 0.0
+    s_in = 0.0
+    span = 0.0
+    for j in range(n_r):
+        if scratch.rising[j] == inside:
+            continue  # inconsistent with the class we are in: rounding; keep the class we have
+        s = scratch.loc[j]
+        if inside:
+            f_int += _antiderivative(g, s, threshold) - _antiderivative(g, s_in, threshold)
+            span += s - s_in
+        else:
+            s_in = s
+        inside = scratch.rising[j]
+    if inside:
+        f_int += _antiderivative(g, 1.0, threshold) - _antiderivative(g, s_in, threshold)
+        span += 1.0 - s_in
+    return w * f_int, w * span
+
+
+@njit(**NJIT_INLINE)
+def rho_integral(f_int, length, mode, threshold):
+    """int rho over the inside parts from int F and their length (rho is affine in F, MODEL.md §4)."""
+    if mode == DENSITY_UNIFORM:
+        return length
+    if mode == DENSITY_EXCESS:
+        return f_int - threshold * length
+    return f_int
+
+
+@njit(**NJIT)
+def sweep_depth(n_p, threshold, mode, tmin, tmax, tol_t, scratch):
+    """int rho over {F >= T} within [tmin, tmax] (rho by density ``mode``), from the chords gathered in the
+    scratch: the
+    intervals of ``composite`` (the same breakpoints, splits and sums, by ``add_active``), classed as
+    ``inside_pieces`` classes them, integrated without writing them down. (The class carried from one
+    interval to the next, which inside_pieces needs for its transitions, does not change the measure:
+    each interval starts in the class of F at its start.)"""
+    p_t0, p_t1, p_c = scratch.chord_t0, scratch.chord_t1, scratch.chord_c
+    bp, order, act, g = scratch.bp, scratch.order, scratch.act, scratch.g
+    sort_breakpoints(p_t0, p_t1, n_p, bp, order)
+    n_act = 0
+    i_s = 0
+    f_int = 0.0
+    length = 0.0
+    for k in range(2 * n_p - 1):
+        ta = bp[k]
+        tb = bp[k + 1]
+        if ta >= tmax:
+            break
+        if tb <= ta:
+            continue
+        n_act, i_s = advance_active(ta, p_t0, p_t1, order, act, n_act, i_s, n_p)
+        lo = max(ta, tmin)
+        hi = min(tb, tmax)
+        if n_act == 0 or hi <= lo:
+            continue
+        a0, a1, a2, a3, a4, a5, a6, mag = add_active(lo, hi, act, n_act, p_t0, p_t1, p_c)
+        w = hi - lo
+        if min(min(min(a0, a1), min(a2, a3)), min(min(a4, a5), a6)) - threshold >= 0.0:
+            # the hull lies above T: wholly inside (clip_roots would find no root)
+            f_int += w * ((a0 + a1 + a2 + a3 + a4 + a5 + a6) * (1.0 / NCOEF))
+            length += w
+        elif max(max(max(a0, a1), max(a2, a3)), max(max(a4, a5), a6)) - threshold >= 0.0:  # else wholly outside
+            g[0] = a0 - threshold
+            g[1] = a1 - threshold
+            g[2] = a2 - threshold
+            g[3] = a3 - threshold
+            g[4] = a4 - threshold
+            g[5] = a5 - threshold
+            g[6] = a6 - threshold
+            f_part, span = straddling_interval(w, threshold, tol_t, mag, scratch)
+            f_int += f_part
+            length += span
+    return rho_integral(f_int, length, mode, threshold)
+
+
+@njit(**NJIT)
+def blob_optical_depth(o, d, tmin, tmax, blob, mode, scale, tol_t, cand, n_cand, scratch):
+    """tau = scale * int rho over {F >= T} of the ray within [tmin, tmax] through ``blob`` (its balls
+    cand[:n_cand]); rho by density ``mode`` (MODEL.md §4). Grows the scratch when the ray meets more
+    chords than it holds. Returns (scratch, tau)."""
+    n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    if n_p > capacity_of(scratch):
+        scratch = alloc_scratch(2 * n_p)
+        gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    if n_p == 0:
+        return scratch, 0.0
+    return scratch, scale * sweep_depth(n_p, blob.threshold, mode, tmin, tmax, tol_t, scratch)

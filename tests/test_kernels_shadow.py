@@ -1,0 +1,107 @@
+"""The shadow rays' fused sweep (cloudmeta.kernels.shadow) against the full sweep (composite, inside_pieces,
+pieces_optical_depth) and against the naive optical depth: every kernel, ellipsoids, negative balls, rays
+from outside and from inside, cut by tmin and tmax, tangent rays, every density mode."""
+import numpy as np
+import pytest
+
+from cloudmeta.engine import blob_record
+from cloudmeta.kernels import shadow as ksh
+from cloudmeta.kernels import sweep as ks
+from tests import naive
+from tests.conftest import random_blob, random_rays
+
+MODES = {"field": ks.DENSITY_FIELD, "excess": ks.DENSITY_EXCESS, "uniform": ks.DENSITY_UNIFORM}
+
+
+def full_sweep_depth(o, d, tmin, tmax, rec, mode, tol_t):
+    cand = np.arange(rec.centers.shape[0])
+    scratch = ks.alloc_scratch(4096)
+    n_p = ks.gather_chords(o, d, tmin, tmax, rec, cand, len(cand), scratch)
+    if n_p == 0:
+        return 0.0
+    n_iv = ks.composite(n_p, tmin, tmax, scratch)
+    n_out, _ = ks.inside_pieces(n_iv, rec.threshold, tmin, tmax, tol_t, False, scratch)
+    return ks.pieces_optical_depth(n_out, mode, rec.threshold, 1.7, scratch)
+
+
+def fused_depth(o, d, tmin, tmax, rec, mode, tol_t, capacity=4096):
+    cand = np.arange(rec.centers.shape[0])
+    _, tau = ksh.blob_optical_depth(o, d, tmin, tmax, rec, mode, 1.7, tol_t, cand, len(cand),
+                                    ks.alloc_scratch(capacity))
+    return tau
+
+
+def rays_inside_and_out(rng, blob, n):
+    """Rays from outside, and rays from inside (ball centres and random points) in random directions."""
+    o, d = random_rays(rng, n)
+    inner = np.concatenate([blob.centers[: n // 2], rng.uniform(-1.5, 1.5, (n // 2, 3))])
+    di = rng.normal(size=inner.shape)
+    di /= np.linalg.norm(di, axis=1)[:, None]
+    return np.concatenate([o, inner]), np.concatenate([d, di])
+
+
+@pytest.mark.parametrize("kernel", ["wyvill6", "murakami4", "nishimura", "blinn"])
+@pytest.mark.parametrize("mode", list(MODES))
+def test_fused_depth_equals_full_sweep(rng, kernel, mode):
+    """Every ray, from outside and inside, cut or not by tmin / tmax: the same optical depth as the full
+    sweep to rounding."""
+    blob = random_blob(rng, 14, kernel, ellipsoids=True, negative=True)
+    rec = blob_record(blob)
+    o, d = rays_inside_and_out(rng, blob, 40)
+    checked = 0
+    for i in range(len(o)):
+        for tmin, tmax in ((0.0, np.inf), (0.0, 9.0 + 3.0 * (i % 5)), (1.5, np.inf), (0.3, 2.0)):
+            ref = full_sweep_depth(o[i], d[i], tmin, tmax, rec, MODES[mode], 1e-12)
+            got = fused_depth(o[i], d[i], tmin, tmax, rec, MODES[mode], 1e-12)
+            assert got == pytest.approx(ref, rel=1e-10, abs=1e-11), (i, tmin, tmax)
+            checked += ref > 0.0
+    assert checked > 60
+
+
+@pytest.mark.parametrize("kernel", ["wyvill6", "murakami4"])
+def test_fused_depth_against_naive(rng, kernel):
+    """Against tests/naive.py's optical depth (numpy roots of the power-basis field, quadrature-free)."""
+    blob = random_blob(rng, 10, kernel, negative=True)
+    rec = blob_record(blob)
+    o, d = rays_inside_and_out(rng, blob, 30)
+    for i in range(len(o)):
+        for mode in MODES:
+            ref = naive.optical_depth(blob, o[i], d[i], density=mode, scale=1.7)
+            got = fused_depth(o[i], d[i], 0.0, np.inf, rec, MODES[mode], 1e-12)
+            assert got == pytest.approx(ref, rel=1e-8, abs=1e-9), (i, mode)
+
+
+def test_tangent_and_touching_rays():
+    """A ray tangent to the isosurface of one ball (F touches T: a double root, no inside length) and
+    rays just inside and outside of it; a ray along the axis of two balls whose fields meet at T."""
+    blob = random_blob(np.random.default_rng(3), 1)
+    blob = type(blob)(np.zeros((1, 3)), np.array([1.0]), np.array([1.0]), kernel="wyvill6", threshold=0.5)
+    rec = blob_record(blob)
+    # wyvill6: k(u) = 0.5 at the u0 below; the ray at distance sqrt(u0) just touches F = T
+    u0 = __import__("scipy.optimize", fromlist=["brentq"]).brentq(
+        lambda u: (1 - u) ** 2 * (1 - 4 * u / 9) - 0.5, 0.0, 1.0, xtol=1e-15)
+    for off in (-1e-7, 0.0, 1e-7):
+        o = np.array([-3.0, np.sqrt(u0) + off, 0.0])
+        d = np.array([1.0, 0.0, 0.0])
+        for mode in MODES.values():
+            ref = full_sweep_depth(o, d, 0.0, np.inf, rec, mode, 1e-12)
+            got = fused_depth(o, d, 0.0, np.inf, rec, mode, 1e-12)
+            assert got == pytest.approx(ref, rel=1e-9, abs=1e-12)
+    two = type(blob)(np.array([[-0.9, 0, 0], [0.9, 0, 0]]), np.array([1.0, 1.0]), np.array([1.0, 1.0]),
+                     kernel="wyvill6", threshold=0.5)
+    rec2 = blob_record(two)
+    o = np.array([-3.0, 0.0, 0.0])
+    d = np.array([1.0, 0.0, 0.0])
+    for mode in MODES.values():
+        assert fused_depth(o, d, 0.0, np.inf, rec2, mode, 1e-12) == pytest.approx(
+            full_sweep_depth(o, d, 0.0, np.inf, rec2, mode, 1e-12), rel=1e-12)
+
+
+def test_scratch_grows(rng):
+    """A ray that meets more chords than the scratch holds grows it and gives the same depth."""
+    blob = random_blob(rng, 40, "wyvill6")
+    rec = blob_record(blob)
+    o, d = rays_inside_and_out(rng, blob, 10)
+    for i in range(len(o)):
+        assert fused_depth(o[i], d[i], 0.0, np.inf, rec, ks.DENSITY_FIELD, 1e-12, capacity=1) == \
+            fused_depth(o[i], d[i], 0.0, np.inf, rec, ks.DENSITY_FIELD, 1e-12)
