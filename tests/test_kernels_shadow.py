@@ -26,9 +26,8 @@ def full_sweep_depth(o, d, tmin, tmax, rec, mode, tol_t):
 
 def fused_depth(o, d, tmin, tmax, rec, mode, tol_t, capacity=4096):
     cand = np.arange(rec.centers.shape[0])
-    _, tau = ksh.blob_optical_depth(o, d, tmin, tmax, rec, mode, 1.7, tol_t, cand, len(cand),
-                                    ks.alloc_scratch(capacity))
-    return tau
+    _, rho = ksh.column_density(o, d, tmin, tmax, rec, mode, tol_t, cand, len(cand), ks.alloc_scratch(capacity))
+    return 1.7 * rho
 
 
 def rays_inside_and_out(rng, blob, n):

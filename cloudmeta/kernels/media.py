@@ -9,7 +9,7 @@ from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF
 from .bvh import bvh_candidates
 from .records import BlobRecord, RayPieces
-from .shadow import blob_optical_depth
+from .shadow import column_density
 from .sweep import rho_value, trace_blob
 
 
@@ -92,9 +92,9 @@ def shadow_transmittance(x, l, tmax, med, tol_t, tau_stop, scratch, cand, stack)
         n_cand = bvh_candidates(x, l, 0.0, tmax, med.bvh, med.bvh.root[m], stack, cand)
         if n_cand == 0:
             continue
-        scratch, tau_m = blob_optical_depth(x, l, 0.0, tmax, medium_blob(med, m), med.mode[m], med.scale[m], tol_t,
-                                            cand, n_cand, scratch)
-        tau += tau_m
+        scratch, rho_m = column_density(x, l, 0.0, tmax, medium_blob(med, m), med.mode[m], tol_t, cand, n_cand,
+                                        scratch)
+        tau += med.scale[m] * rho_m
         if tau > tau_stop:
             break
     return scratch, math.exp(-tau)

@@ -118,14 +118,14 @@ def sweep_depth(n_p, threshold, mode, tmin, tmax, tol_t, scratch):
 
 
 @njit(**NJIT)
-def blob_optical_depth(o, d, tmin, tmax, blob, mode, scale, tol_t, cand, n_cand, scratch):
-    """tau = scale * int rho over {F >= T} of the ray within [tmin, tmax] through ``blob`` (its balls
-    cand[:n_cand]); rho by density ``mode`` (MODEL.md §4). Grows the scratch when the ray meets more
-    chords than it holds. Returns (scratch, tau)."""
+def column_density(o, d, tmin, tmax, blob, mode, tol_t, cand, n_cand, scratch):
+    """The integral of rho over {F >= T} along the ray within [tmin, tmax] through ``blob`` (its balls
+    cand[:n_cand]), rho by density ``mode`` (MODEL.md §4): the optical depth over the medium's scale.
+    Grows the scratch when the ray meets more chords than it holds. Returns (scratch, the integral)."""
     n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p > capacity_of(scratch):
         scratch = alloc_scratch(2 * n_p)
         gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p == 0:
         return scratch, 0.0
-    return scratch, scale * sweep_depth(n_p, blob.threshold, mode, tmin, tmax, tol_t, scratch)
+    return scratch, sweep_depth(n_p, blob.threshold, mode, tmin, tmax, tol_t, scratch)
