@@ -3,6 +3,9 @@ pieces_optical_depth) and against the naive optical depth: every kernel, ellipso
 from outside and from inside, cut by tmin and tmax, tangent rays, every density mode."""
 import numpy as np
 import pytest
+from scipy.optimize import brentq
+
+import cloudmeta as cm
 
 from cloudmeta.engine import blob_record
 from cloudmeta.kernels import shadow as ksh
@@ -73,24 +76,25 @@ def test_fused_depth_against_naive(rng, kernel):
 def test_tangent_and_touching_rays():
     """A ray tangent to the isosurface of one ball (F touches T: a double root, no inside length) and
     rays just inside and outside of it; a ray along the axis of two balls whose fields meet at T."""
-    blob = random_blob(np.random.default_rng(3), 1)
-    blob = type(blob)(np.zeros((1, 3)), np.array([1.0]), np.array([1.0]), kernel="wyvill6", threshold=0.5)
-    rec = blob_record(blob)
-    # wyvill6: k(u) = 0.5 at the u0 below; the ray at distance sqrt(u0) just touches F = T
-    u0 = __import__("scipy.optimize", fromlist=["brentq"]).brentq(
-        lambda u: (1 - u) ** 2 * (1 - 4 * u / 9) - 0.5, 0.0, 1.0, xtol=1e-15)
+    one = cm.Blob(np.zeros((1, 3)), np.array([1.0]), np.array([1.0]), kernel="wyvill6", threshold=0.5)
+    rec = blob_record(one)
+    # wyvill6: k(u0) = 0.5; the ray at distance sqrt(u0) from the centre just touches F = T
+    u0 = brentq(lambda u: (1 - u) ** 2 * (1 - 4 * u / 9) - 0.5, 0.0, 1.0, xtol=1e-15)
+    d = np.array([1.0, 0.0, 0.0])
     for off in (-1e-7, 0.0, 1e-7):
         o = np.array([-3.0, np.sqrt(u0) + off, 0.0])
-        d = np.array([1.0, 0.0, 0.0])
         for mode in MODES.values():
             ref = full_sweep_depth(o, d, 0.0, np.inf, rec, mode, 1e-12)
             got = fused_depth(o, d, 0.0, np.inf, rec, mode, 1e-12)
             assert got == pytest.approx(ref, rel=1e-9, abs=1e-12)
-    two = type(blob)(np.array([[-0.9, 0, 0], [0.9, 0, 0]]), np.array([1.0, 1.0]), np.array([1.0, 1.0]),
-                     kernel="wyvill6", threshold=0.5)
+            if off > 0.0:
+                assert got == 0.0  # outside: no inside length
+            if off < 0.0:
+                assert got > 0.0
+    two = cm.Blob(np.array([[-0.9, 0, 0], [0.9, 0, 0]]), np.array([1.0, 1.0]), np.array([1.0, 1.0]),
+                  kernel="wyvill6", threshold=0.5)
     rec2 = blob_record(two)
     o = np.array([-3.0, 0.0, 0.0])
-    d = np.array([1.0, 0.0, 0.0])
     for mode in MODES.values():
         assert fused_depth(o, d, 0.0, np.inf, rec2, mode, 1e-12) == pytest.approx(
             full_sweep_depth(o, d, 0.0, np.inf, rec2, mode, 1e-12), rel=1e-12)

@@ -1,11 +1,10 @@
-"""The optical depth of a shadow ray through one blob, without its pieces: ``sweep.composite``,
-``sweep.inside_pieces`` and ``sweep.pieces_optical_depth`` fused into one pass.
+"""The optical depth of a shadow ray through one blob, without its pieces: ``sweep.inside_pieces`` and
+``sweep.pieces_optical_depth`` fused into one pass over ``sweep.composite``'s intervals.
 
-A shadow ray needs one number, tau = scale * int rho over {F >= T}, not the pieces. The full sweep writes
-every composite interval, calls ``clip_roots`` on each, and cuts out every inside piece by two de Casteljau
-splits before it integrates them; on the cumulus a shadow ray has 15 intervals, 11 of them wholly inside
-and about one that straddles T. Here each interval's control values come from the same ``add_active``
-(the same breakpoints, splits and sums as composite), and then:
+A shadow ray needs one number, tau = scale * int rho over {F >= T}, not the pieces. The full sweep calls
+``clip_roots`` on every composite interval and cuts out every inside piece by two de Casteljau splits
+before it integrates them; on the cumulus a shadow ray has 15 intervals, 11 of them wholly inside and
+about one that straddles T. Here each of composite's intervals is classed by its control values:
 
 - the hull above T: wholly inside, its integral is the length times the mean of the control values;
 - the hull below T: wholly outside;
@@ -22,8 +21,7 @@ from numba import njit
 from ..config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF, bernstein_cumulative
 from .clipping import clip_roots
-from .sweep import (DENSITY_EXCESS, DENSITY_UNIFORM, NOISE, add_active, advance_active, alloc_scratch, capacity_of,
-                    gather_chords, sort_breakpoints)
+from .sweep import DENSITY_EXCESS, DENSITY_UNIFORM, NOISE, alloc_scratch, capacity_of, composite, gather_chords
 
 
 @njit(**NJIT_INLINE)
@@ -71,47 +69,31 @@ def rho_integral(f_int, length, mode, threshold):
 
 
 @njit(**NJIT)
-def sweep_depth(n_p, threshold, mode, tmin, tmax, tol_t, scratch):
-    """int rho over {F >= T} within [tmin, tmax] (rho by density ``mode``), from the chords gathered in the
-    scratch: the
-    intervals of ``composite`` (the same breakpoints, splits and sums, by ``add_active``), classed as
-    ``inside_pieces`` classes them, integrated without writing them down. (The class carried from one
-    interval to the next, which inside_pieces needs for its transitions, does not change the measure:
-    each interval starts in the class of F at its start.)"""
-    p_t0, p_t1, p_c = scratch.chord_t0, scratch.chord_t1, scratch.chord_c
-    bp, order, act, g = scratch.bp, scratch.order, scratch.act, scratch.g
-    sort_breakpoints(p_t0, p_t1, n_p, bp, order)
-    n_act = 0
-    i_s = 0
+def intervals_depth(n_iv, threshold, mode, tol_t, scratch):
+    """int rho over {F >= T} on the n_iv composite intervals in the scratch (``composite``'s), rho by density
+    ``mode``: each classed as ``inside_pieces`` classes it and integrated without cutting out its pieces.
+    (The class carried from one interval to the next, which inside_pieces needs for its transitions, does
+    not change the measure: each interval starts in the class of F at its start.)"""
+    iv_t0, iv_t1, iv_c, iv_mag, g = scratch.iv_t0, scratch.iv_t1, scratch.iv_c, scratch.iv_mag, scratch.g
     f_int = 0.0
     length = 0.0
-    for k in range(2 * n_p - 1):
-        ta = bp[k]
-        tb = bp[k + 1]
-        if ta >= tmax:
-            break
-        if tb <= ta:
-            continue
-        n_act, i_s = advance_active(ta, p_t0, p_t1, order, act, n_act, i_s, n_p)
-        lo = max(ta, tmin)
-        hi = min(tb, tmax)
-        if n_act == 0 or hi <= lo:
-            continue
-        a0, a1, a2, a3, a4, a5, a6, mag = add_active(lo, hi, act, n_act, p_t0, p_t1, p_c)
-        w = hi - lo
-        if min(min(min(a0, a1), min(a2, a3)), min(min(a4, a5), a6)) - threshold >= 0.0:
+    for k in range(n_iv):
+        w = iv_t1[k] - iv_t0[k]
+        lo = iv_c[k, 0]
+        hi = iv_c[k, 0]
+        mean = 0.0
+        for q in range(NCOEF):
+            lo = min(lo, iv_c[k, q])
+            hi = max(hi, iv_c[k, q])
+            mean += iv_c[k, q]
+        if lo - threshold >= 0.0:
             # the hull lies above T: wholly inside (clip_roots would find no root)
-            f_int += w * ((a0 + a1 + a2 + a3 + a4 + a5 + a6) * (1.0 / NCOEF))
+            f_int += w * (mean * (1.0 / NCOEF))
             length += w
-        elif max(max(max(a0, a1), max(a2, a3)), max(max(a4, a5), a6)) - threshold >= 0.0:  # else wholly outside
-            g[0] = a0 - threshold
-            g[1] = a1 - threshold
-            g[2] = a2 - threshold
-            g[3] = a3 - threshold
-            g[4] = a4 - threshold
-            g[5] = a5 - threshold
-            g[6] = a6 - threshold
-            f_part, span = straddling_interval(w, threshold, tol_t, mag, scratch)
+        elif hi - threshold >= 0.0:  # else the hull lies below T: wholly outside
+            for q in range(NCOEF):
+                g[q] = iv_c[k, q] - threshold
+            f_part, span = straddling_interval(w, threshold, tol_t, iv_mag[k] * NCOEF, scratch)
             f_int += f_part
             length += span
     return rho_integral(f_int, length, mode, threshold)
@@ -128,4 +110,5 @@ def column_density(o, d, tmin, tmax, blob, mode, tol_t, cand, n_cand, scratch):
         gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p == 0:
         return scratch, 0.0
-    return scratch, sweep_depth(n_p, blob.threshold, mode, tmin, tmax, tol_t, scratch)
+    n_iv = composite(n_p, tmin, tmax, scratch)
+    return scratch, intervals_depth(n_iv, blob.threshold, mode, tol_t, scratch)
