@@ -2,41 +2,31 @@
 
 The curve is the paper's single ball on a central chord, d = (0, 0, 0.59, 2.31, 0.59, 0, 0), against the
 thresholds T = -0.2 and 1.2 (no root in [0, 1]) and T = 0.5 (two roots); g = d - T. Bézier clipping is the
-engine's ``cloudmeta.kernels.clipping.clip_roots``; Laguerre's method (validation/_laguerre.py) converts g to
+engine's ``cloudmeta.kernels.clipping.clip_roots``; Laguerre's method (validation/references/laguerre.py) converts g to
 power form, finds all 6 complex roots with deflation, polishes them and keeps the real ones in [0, 1].
 Both are timed inside numba loops (many calls per timing, best of several timings, after warm-up), at the
 paper's tolerance 0.001 and at 1e-9.
 
-    python -m validation.root_finding_table [--reps 100000] [--runs 7] [--quick]
+    python -m validation.accuracy.root_finding_table [--reps 100000] [--runs 7] [--quick]
 
 Requirement (the issue), measured in one run: clipping >= 10x faster than Laguerre at T = 0.5 and >= 30x at
 T = -0.2 and T = 1.2. Writes validation/results/root_finding_table.csv.
 """
 from __future__ import annotations
 
-import argparse
-import csv
-import os
-import sys
 import time
-from pathlib import Path
 
-if __name__ == "__main__":
-    # numba's cache does not notice when a kernel's callee in another file changes (clip_roots keeps a stale
-    # copy of bernstein.subdivide): a validation run compiles the engine fresh unless told otherwise
-    os.environ.setdefault("CLOUDMETA_NO_CACHE", "1")
-if __package__ in (None, ""):  # run as a file: make `cloudmeta` and `validation` importable
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from validation.common import cache_note, fresh_kernels_when_run, parse, parser, print_head, run_main, write_csv
+
+fresh_kernels_when_run(__name__)  # before cloudmeta is imported
 
 import numpy as np
 from numba import njit
 
-from cloudmeta import config
 from cloudmeta.kernels.bernstein import subdivide
 from cloudmeta.kernels.clipping import MAX_STEPS, STACK_DEPTH, STALL, _no_crossing, clip_roots, hull_crossing
-from validation._laguerre import laguerre_roots, scratch as laguerre_scratch
+from validation.references.laguerre import laguerre_roots, scratch as laguerre_scratch
 
-RESULTS = Path(__file__).resolve().parent / "results"
 D_PAPER = np.array([0.0, 0.0, 0.59, 2.31, 0.59, 0.0, 0.0])
 THRESHOLDS = (-0.2, 0.5, 1.2)
 TOLERANCES = (1e-3, 1e-9)
@@ -161,22 +151,12 @@ def fmt_roots(r):
     return "[" + ", ".join(f"{x:.6f}" for x in r) + "]" if len(r) else "none"
 
 
-def cache_note():
-    if config.CACHE:
-        return "engine kernels: loaded from numba's cache (stale after some edits; CLOUDMETA_NO_CACHE=1 compiles fresh)"
-    return "engine kernels: compiled fresh for this run (CLOUDMETA_NO_CACHE=1)"
-
-
 def main(argv=None, quick=False):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--reps", type=int, default=None, help="calls per timing (default 100000; 10000 with --quick)")
-    parser.add_argument("--runs", type=int, default=None, help="timings per method, best kept (default 7; 3 quick)")
-    parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--no-csv", action="store_true",
-                        help="do not write validation/results/*.csv (quick runs never do)")
-    args = parser.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
-    write_csv = not (args.no_csv or quick)  # quick runs (tests) leave the full run's results alone
+    ap = parser(__doc__, quick="fewer calls per timing and fewer timings", no_csv=True)
+    ap.add_argument("--reps", type=int, default=None, help="calls per timing (default 100000; 10000 with --quick)")
+    ap.add_argument("--runs", type=int, default=None, help="timings per method, best kept (default 7; 3 quick)")
+    args, quick = parse(ap, argv, quick)
+    write = not (args.no_csv or quick)  # quick runs (tests) leave the full run's results alone
     reps = args.reps or (10_000 if quick else 100_000)
     runs = args.runs or (3 if quick else 7)
 
@@ -210,8 +190,7 @@ def main(argv=None, quick=False):
           "each, inside numba\n")
     head = (f"{'T':>5} {'tol':>6} {'roots (clipping)':>22} {'roots (Laguerre)':>22} {'max|dr|':>8} "
             f"{'clip ns':>8} {'Lag ns':>8} {'ratio':>7} {'clip steps':>10} {'Lag it/root':>11} {'need':>5}  result")
-    print(head)
-    print("-" * len(head))
+    print_head(head)
     for r in rows:
         print(f"{r['T']:>5} {r['tol']:>6.0e} {fmt_roots(r['roots_clipping']):>22} {fmt_roots(r['roots_laguerre']):>22} "
               f"{r['max_root_diff']:>8.1e} {r['t_clipping_ns']:>8.1f} {r['t_laguerre_ns']:>8.1f} "
@@ -230,16 +209,11 @@ def main(argv=None, quick=False):
     print(f"\n{'PASS' if passed else 'FAIL'}: clipping >= 10x faster than Laguerre at T = 0.5 and >= 30x at "
           "T = -0.2 and 1.2, at both tolerances, roots agreeing")
 
-    if write_csv:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "root_finding_table.csv", "w", newline="") as f:
-            wr = csv.DictWriter(f, fieldnames=list(rows[0]))
-            wr.writeheader()
-            for r in rows:
-                wr.writerow(r)
+    if write:
+        write_csv("root_finding_table.csv", rows)
     return dict(rows=rows, passed=passed, reps=reps, runs=runs, step_parts_ns=parts,
                 ratios={(r["T"], r["tol"]): r["ratio"] for r in rows})
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

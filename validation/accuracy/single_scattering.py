@@ -3,7 +3,7 @@
 The reference is written here in plain numpy/scipy and shares nothing with the renderer but the scene's
 colours (the loader's colour conversion is not under test here): the scene's geometry is read from the
 YAML (and CSV) itself, rotations come from scipy, camera rays are built from MODEL.md §8, the field from
-MODEL.md §1 (validation/_plain.py: power form on each chord interval, companion-matrix roots, exact
+MODEL.md §1 (validation/references/plain.py: power form on each chord interval, companion-matrix roots, exact
 antiderivatives). For every pixel:
 
     L = L_bg T(0, inf) + integral_0^inf T(0, t) sum_media sigma_s(t) [sum_lights p(l . d) E_l(t) T_l(t) + L_amb] dt
@@ -24,33 +24,26 @@ and per scene and setting the relative RMSE over the compared pixels and RGB:
 Requirement: below what the setting promises, 1e-3 for ``default`` and 1e-4 for ``reference``; alpha
 (1 - T) to 1e-5 absolute at both (the view transmittance is exact at every setting).
 
-    python -m validation.single_scattering [--quick] [--rtol 1e-8] [--check-rtol 1e-10]
+    python -m validation.accuracy.single_scattering [--quick] [--rtol 1e-8] [--check-rtol 1e-10]
 
 Writes validation/results/single_scattering.csv (per scene and setting), single_scattering_pixels.csv
 (every pixel) and single_scattering.png (renderer against reference, per pixel).
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import math
-import sys
 import tempfile
 import time
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 import yaml
 
 import cloudmeta as cm
-from validation import _plain as P
-from validation.render_quality import with_quality
+from validation.common import (RESULTS, ROOT, parse, parser, print_head, pyplot, rel_rmse, run_main, save_figure,
+                               with_settings, write_csv)
+from validation.references import plain as P
 
-ROOT = Path(__file__).resolve().parent.parent
-RESULTS = Path(__file__).resolve().parent / "results"
 BOUND = {"reference": 1e-4, "default": 1e-3}
 ALPHA_BOUND = 1e-5
 SETTINGS = ("reference", "default")
@@ -380,11 +373,11 @@ def run_scene(name, path, width, height, pixels, rtol, check_rtol):
     rows, pix_rows = [], []
     for setting in SETTINGS:
         t1 = time.perf_counter()
-        img = cm.render(with_quality(scene, quality=setting), progress=False).astype(np.float64)
+        img = cm.render(with_settings(scene, quality=setting), progress=False).astype(np.float64)
         t_render = time.perf_counter() - t1
         got = img[pixels[:, 0], pixels[:, 1], :3]
         alpha = img[pixels[:, 0], pixels[:, 1], 3]
-        rmse = float(np.sqrt(np.mean((got - ref) ** 2)) / np.sqrt(np.mean(ref ** 2)))
+        rmse = rel_rmse(got, ref)
         pix_err = np.abs(got - ref).max(axis=1) / np.maximum(ref.max(axis=1), 1e-300)
         a_err = float(np.abs(alpha - (1.0 - trans)).max())
         rows.append(dict(scene=name, size=f"{width}x{height}", pixels=len(pixels), setting=setting,
@@ -400,9 +393,7 @@ def run_scene(name, path, width, height, pixels, rtol, check_rtol):
 
 
 def plot(pix_rows, out):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, setting in zip(axes, SETTINGS):
         for scene in dict.fromkeys(r["scene"] for r in pix_rows):
@@ -416,20 +407,16 @@ def plot(pix_rows, out):
         ax.set_ylabel("|renderer - reference| / reference")
         ax.set_title(f"quality: {setting} (dashed: bound on the rel. RMSE)")
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
+    save_figure(fig, out)
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="a few pixels per scene (for the test)")
+    ap = parser(__doc__, quick="a few pixels per scene (for the test)")
     ap.add_argument("--rtol", type=float, default=None, help="reference tolerance (default 1e-8; 1e-6 quick)")
     ap.add_argument("--check-rtol", type=float, default=None,
                     help="recompute a few pixels at this tolerance to show the reference converged (default 1e-10; "
                          "off in quick mode)")
-    args = ap.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     rtol = args.rtol or (1e-6 if quick else 1e-8)
     check_rtol = args.check_rtol if args.check_rtol is not None else (0 if quick else 1e-10)
     start = time.perf_counter()
@@ -446,8 +433,7 @@ def main(argv=None, quick=False):
     head = (f"{'scene':18s} {'size':>6s} {'px':>4s} {'setting':>9s} {'rel RMSE':>9s} {'bound':>6s} "
             f"{'max px rel':>10s} {'alpha err':>9s} {'render s':>8s} {'ref s':>6s} {'ref evals':>9s} "
             f"{'ref self':>8s}  result")
-    print(head)
-    print("-" * len(head))
+    print_head(head)
     for r in rows:
         chk = "-" if r["reference_self_check"] is None else f"{r['reference_self_check']:.1e}"
         print(f"{r['scene']:18s} {r['size']:>6s} {r['pixels']:4d} {r['setting']:>9s} {r['rel_rmse']:9.2e} "
@@ -460,15 +446,8 @@ def main(argv=None, quick=False):
           f"(reference {BOUND['reference']:g}, default {BOUND['default']:g}; alpha {ALPHA_BOUND:g})   "
           f"[{elapsed:.1f} s]")
     if not quick:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "single_scattering.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-        with open(RESULTS / "single_scattering_pixels.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(pix_rows[0]))
-            w.writeheader()
-            w.writerows(pix_rows)
+        write_csv("single_scattering.csv", rows)
+        write_csv("single_scattering_pixels.csv", pix_rows)
         plot(pix_rows, RESULTS / "single_scattering.png")
         print(f"wrote {RESULTS / 'single_scattering.csv'}, single_scattering_pixels.csv, single_scattering.png")
     return dict(rows=rows, passed=passed, seconds=elapsed,
@@ -476,4 +455,4 @@ def main(argv=None, quick=False):
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

@@ -9,35 +9,28 @@ against the ``reference`` setting of the same image:
 Settings: the presets draft, default, fine (exact shadow rays); shadow maps (``shadows: map``) at the
 default quality with 128, 384 (the renderer's default) and 1024 texels per side, and at draft with 384.
 The ``reference`` itself is checked on a small image against a setting tighter still (``vs tighter``: the
-check setting of validation/render_quality.py), so that its own error shows the floor under every other
+check setting of validation/accuracy/render_quality.py), so that its own error shows the floor under every other
 figure. The Pareto curve (settings that no other
 setting beats in both time and error) is drawn in validation/results/time_vs_error.png.
 
-    python -m validation.time_vs_error [--size 256] [--check-size 64] [--scenes ...] [--quick]
+    python -m validation.performance.time_vs_error [--size 256] [--check-size 64] [--scenes ...] [--quick]
 
 Times are wall-clock seconds on the machine that runs it (the project's: 2 cores, shared), one render
 each after a warm-up, so expect some noise. Requirement: the default quality below 1e-3 relative RMSE on
-every scene, every image finite. Reuses validation/render_quality.py (rel_rmse, with_quality, ULTRA).
+every scene, every image finite. Reuses validation/accuracy/render_quality.py's ULTRA.
 """
 from __future__ import annotations
 
-import argparse
-import csv
-import sys
 import time
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
 import cloudmeta as cm
-from validation import render_quality
-from validation.render_quality import rel_rmse, with_quality
+from validation.accuracy import render_quality
+from validation.common import (RESULTS, ROOT, parse, parser, print_head, pyplot, read_csv, rel_rmse, run_main,
+                               save_figure, with_settings, write_results)
 
-ROOT = Path(__file__).resolve().parent.parent
-RESULTS = Path(__file__).resolve().parent / "results"
 SCENES = (ROOT / "scenes" / "cumulus.yaml", ROOT / "scenes" / "dense_1000.yaml")
 #: label -> render settings (``reference`` is the baseline and comes first)
 SETTINGS = {
@@ -61,13 +54,13 @@ def timed(scene):
 
 
 def tighter(scene):
-    """validation/render_quality.py's check setting, tighter than ``reference`` (ULTRA, and its step length
+    """validation/accuracy/render_quality.py's check setting, tighter than ``reference`` (ULTRA, and its step length
     where that script defines one)."""
     extra = {}
     if hasattr(render_quality, "ULTRA_LENGTH"):
         lo, hi = scene.bbox()
         extra["max_length"] = render_quality.ULTRA_LENGTH * float(np.linalg.norm(hi - lo))
-    return with_quality(scene, **{**render_quality.ULTRA, **extra})
+    return with_settings(scene, **{**render_quality.ULTRA, **extra})
 
 
 def pareto(rows):
@@ -86,19 +79,19 @@ def run_scene(path, size, check_size, labels):
     # warm-up: compile (or load from the cache) everything a setting may use, outside the timings
     small = cm.load_scene(path, width=8, height=8)
     cm.render(small, progress=False)
-    cm.render(with_quality(small, shadows="map", shadow_map=16), progress=False)
+    cm.render(with_settings(small, shadows="map", shadow_map=16), progress=False)
     scene = cm.load_scene(path, width=size, height=size, spp=1)
     rows = []
     ref = None
     for label in labels:
-        img, t = timed(with_quality(scene, **SETTINGS[label]))
+        img, t = timed(with_settings(scene, **SETTINGS[label]))
         finite = bool(np.all(np.isfinite(img)))
         if ref is None:
             ref = img
         rows.append(dict(scene=name, size=size, setting=label, seconds=t, rel_rmse=rel_rmse(img, ref),
                          max_abs=float(np.abs(img[..., :3] - ref[..., :3]).max()), finite=finite))
     check = cm.load_scene(path, width=check_size, height=check_size, spp=1)
-    r_small, _ = timed(with_quality(check, quality="reference"))
+    r_small, _ = timed(with_settings(check, quality="reference"))
     ultra, _ = timed(tighter(check))
     rows.append(dict(scene=name, size=check_size, setting="reference vs tighter", seconds=float("nan"),
                      rel_rmse=rel_rmse(r_small, ultra), max_abs=float(np.abs(r_small - ultra)[..., :3].max()),
@@ -113,9 +106,7 @@ def run_scene(path, size, check_size, labels):
 def plot(rows, out):
     """One panel per scene: every setting (time, error), the Pareto front, the reference's time and its own
     error, and the default's promise."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     fig, axes = plt.subplots(1, len(scenes), figsize=(6.2 * len(scenes), 4.8), sharey=True, squeeze=False)
     offsets = ((5, 4), (5, -11), (-10, 9), (5, 12), (-10, -14))
@@ -147,32 +138,20 @@ def plot(rows, out):
     axes[0][0].set_ylabel("relative RMSE against the reference setting")
     fig.suptitle("cloudmeta: time against error (circles: exact shadow rays, squares: shadow maps; "
                  "filled: on the Pareto front)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(out, dpi=130)
-    plt.close(fig)
+    save_figure(fig, out, dpi=130)
 
 
-def read_csv(path):
+def read_rows(path=RESULTS / "time_vs_error.csv"):
     """Rows of a time_vs_error.csv, typed (to redraw the plot without rendering again)."""
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    for r in rows:
-        r["size"] = int(r["size"])
-        for k in ("seconds", "rel_rmse", "max_abs"):
-            r[k] = float(r[k])
-        for k in ("finite", "pareto"):
-            r[k] = r[k] == "True"
-    return rows
+    return read_csv(path, floats=("seconds", "rel_rmse", "max_abs"), ints=("size",), bools=("finite", "pareto"))
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__, quick="small images and fewer settings, for the test")
     ap.add_argument("--size", type=int, default=None, help="image side in pixels (default 256; 20 quick)")
     ap.add_argument("--check-size", type=int, default=None, help="image side of the reference check (default 64)")
     ap.add_argument("--scenes", nargs="+", default=[str(s) for s in SCENES])
-    ap.add_argument("--quick", action="store_true", help="small images and fewer settings, for the test")
-    args = ap.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     size = args.size or (20 if quick else 256)
     check = args.check_size or (10 if quick else 64)
     labels = QUICK_SETTINGS if quick else tuple(SETTINGS)
@@ -182,8 +161,7 @@ def main(argv=None, quick=False):
     print(f"Time against error, {size} x {size} pixels (relative RMSE against the reference setting)\n")
     head = f"{'scene':12s} {'size':>5s} {'setting':22s} {'time [s]':>9s} {'x ref':>6s} {'rel RMSE':>10s} " \
            f"{'max abs':>9s} {'Pareto':>6s}"
-    print(head)
-    print("-" * len(head))
+    print_head(head)
     for r in rows:
         ref_t = [q["seconds"] for q in rows if q["scene"] == r["scene"] and q["setting"] == "reference"][0]
         speed = "" if not np.isfinite(r["seconds"]) else f"{r['seconds'] / ref_t:6.3f}"
@@ -199,15 +177,9 @@ def main(argv=None, quick=False):
           f"({'yes' if ok_default else 'NO'}), every image finite ({'yes' if ok_finite else 'NO'})   "
           f"[{elapsed:.1f} s]")
     if not quick:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "time_vs_error.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-        plot(rows, RESULTS / "time_vs_error.png")
-        print(f"wrote {RESULTS / 'time_vs_error.csv'} and {RESULTS / 'time_vs_error.png'}")
+        write_results("time_vs_error", rows, plot)
     return dict(rows=rows, passed=passed, seconds=elapsed)
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

@@ -1,48 +1,37 @@
 """The error estimate of ``cloudmeta.render(scene, error=True)`` against the true error, on the accuracy suite.
 
 For every suite scene (scenes/suite/, 64 x 48, exact shadow rays) and the presets draft, default and fine:
-the image's estimated relative RMSE (cloudmeta.estimate.estimated_rel_rmse of the returned per-pixel error)
-against its true relative RMSE (validation/_suite.py's ``rel_rmse`` against the scene's converged reference,
+the image's estimated relative RMSE (cloudmeta.renderer.estimate.estimated_rel_rmse of the returned per-pixel
+error) against its true relative RMSE (validation/common.py's ``rel_rmse`` against the scene's converged reference,
 validation/results/suite/). Issue #11 asks for an estimate at least half the true error and at most 10x it:
 the ratio estimate / true is checked against [0.5, 10] on every scene and preset. Also the time of the render
 with the estimate against the time without it (one render each, after a warm-up; noisy on a shared machine).
 
-    python -m validation.error_estimate [--scenes NAME ...]
-    python -m validation.error_estimate --targets    # render.error = each preset's target: is it met?
+    python -m validation.accuracy.error_estimate [--scenes NAME ...]
+    python -m validation.accuracy.error_estimate --targets    # render.error = each preset's target: is it met?
 
 Writes validation/results/error_estimate.csv (error_targets.csv with --targets). Exit status 0 only if every
 ratio lies in [0.5, 10] (every target is met).
 """
 from __future__ import annotations
 
-import argparse
-import csv
-import sys
 import time
-from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
 import cloudmeta as cm
-from cloudmeta.estimate import estimated_rel_rmse
-from validation import _suite as S
-from validation import suite_references
+from cloudmeta.renderer.estimate import estimated_rel_rmse
+from validation.accuracy import suite_references
+from validation.common import parse, parser, rel_rmse, run_main, write_csv
+from validation.references import suite as S
 
-RESULTS = Path(__file__).resolve().parent / "results"
 PRESETS = ("draft", "default", "fine")
 #: issue #11: the estimate at least half the true error and at most 10x it
 LOW, HIGH = 0.5, 10.0
 
 
 def reference(path):
-    entry = S.cached(path.stem)
-    if entry is None or entry[2].get("fingerprint") != S.fingerprint(path):
-        suite_references.build(path, crosscheck=False)
-        entry = S.cached(path.stem)
-    return entry[0]
+    return suite_references.current(path)[0]
 
 
 def run_scene(path):
@@ -58,7 +47,7 @@ def run_scene(path):
         img, err = cm.render(s, progress=False, error=True)
         t2 = time.perf_counter()
         assert np.array_equal(plain, img)  # the estimate does not change the image
-        true = S.rel_rmse(img, ref)
+        true = rel_rmse(img, ref)
         est = estimated_rel_rmse(img, err)
         ratio = est / true if true > 0 else float("inf")
         rows.append(dict(scene=path.stem, preset=preset, true_rel_rmse=true, estimated_rel_rmse=est, ratio=ratio,
@@ -69,7 +58,6 @@ def run_scene(path):
 
 def run_targets(path):
     """render.error at each preset's target (starting from that preset): true error, estimate, time."""
-    from dataclasses import replace
     ref = reference(path)
     rows = []
     for preset in PRESETS:
@@ -77,7 +65,7 @@ def run_targets(path):
         t0 = time.perf_counter()
         img, err = cm.render(scene, progress=False, error=True)
         took = time.perf_counter() - t0
-        true = S.rel_rmse(img, ref)
+        true = rel_rmse(img, ref)
         rows.append(dict(scene=path.stem, preset=preset, target=S.TARGETS[preset], true_rel_rmse=true,
                          estimated_rel_rmse=estimated_rel_rmse(img, err), meets=bool(true <= S.TARGETS[preset]),
                          seconds=took))
@@ -97,21 +85,18 @@ def main_targets(paths):
     return rows
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv=None, quick=False):
+    ap = parser(__doc__)
     ap.add_argument("--scenes", nargs="*", help="suite scene names (default: all)")
     ap.add_argument("--targets", action="store_true",
                     help="render.error set to each preset's target instead: does the true error meet it?")
-    args = ap.parse_args(argv)
+    args, _ = parse(ap, argv)
     paths = [p for p in S.scene_paths() if not args.scenes or p.stem in args.scenes]
     if args.targets:
         rows = main_targets(paths)
         if not args.scenes:
-            with open(RESULTS / "error_targets.csv", "w", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=list(rows[0]))
-                w.writeheader()
-                w.writerows(rows)
-        return 0 if all(r["meets"] for r in rows) else 1
+            write_csv("error_targets.csv", rows)
+        return dict(rows=rows, passed=all(r["meets"] for r in rows))
     rows = []
     print(f"{'scene':24s} {'preset':8s} {'true':>9s} {'estimate':>9s} {'ratio':>7s}  in [0.5, 10]  "
           f"{'time':>6s} {'+estimate':>9s}")
@@ -125,13 +110,9 @@ def main(argv=None):
     print(f"\n{len(rows)} cases: ratio estimate / true from {ratios.min():.2f} to {ratios.max():.2f} "
           f"(median {np.median(ratios):.2f}); {sum(r['within'] for r in rows)} within [{LOW}, {HIGH}]")
     if not args.scenes:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "error_estimate.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-    return 0 if all(r["within"] for r in rows) else 1
+        write_csv("error_estimate.csv", rows)
+    return dict(rows=rows, passed=all(r["within"] for r in rows))
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

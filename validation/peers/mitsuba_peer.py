@@ -34,29 +34,25 @@ Both renderers run on --threads threads (numba's thread count; drjit's ``set_thr
 first render of a scene JIT-compiles its kernels: that run is timed apart and excluded; cloudmeta's numba
 kernels come from its cache (set CLOUDMETA_CACHE_DIR).
 
-    python -m validation.mitsuba_peer [--quick] [--equal-time-only] [--size 32] [--grids 128,256,512]
-                                      [--time-grids 256,512] [--budget 30] [--cm-spp 16] [--save DIR]
+    python -m validation.peers.mitsuba_peer [--quick] [--equal-time-only] [--size 32] [--grids 128,256,512]
+                                            [--time-grids 256,512] [--budget 30] [--cm-spp 16] [--save DIR]
 
 Without mitsuba it prints how to install it and exits 0. Writes validation/results/mitsuba/*.csv and
 summary.md (full runs only).
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import math
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-RESULTS = Path(__file__).resolve().parent / "results" / "mitsuba"
+from validation.common import RESULTS as ALL_RESULTS
+from validation.common import ROOT, parse, parser, rel_rmse, run_main, with_settings, write_csv
+
+RESULTS = ALL_RESULTS / "mitsuba"
 SCENES = ("cumulus", "cumulus_backlit")
 MITSUBA_VERSION = "3.8.0"
 VARIANT = "llvm_ad_rgb"
@@ -134,11 +130,6 @@ def block_means(img, b):
     """Means of b x b pixel blocks of an H x W x C image (H and W multiples of b)."""
     h, w, c = img.shape
     return np.asarray(img, np.float64).reshape(h // b, b, w // b, b, c).mean(axis=(1, 3))
-
-
-def rel_rmse(a, b, norm):
-    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
-    return float(np.sqrt(np.mean(d * d)) / norm)
 
 
 # ------------------------------------------------------------------------------------------ cloudmeta
@@ -267,7 +258,7 @@ def converged_cloudmeta(scene, paths, passes):
     and its standard error per pixel (from the spread of the passes)."""
     images, seconds = [], 0.0
     for k in range(passes):
-        img, sec, _ = cloudmeta_render(replace(scene, render=replace(scene.render, ms_spp=paths)), 1000 + k)
+        img, sec, _ = cloudmeta_render(with_settings(scene, ms_spp=paths), 1000 + k)
         images.append(img)
         seconds += sec
     stack = np.stack(images)
@@ -327,10 +318,10 @@ def equal_time(mi, scene, ms, budget, norm, cm_cap, mi_cap, threads=2):
     The sample counts are calibrated on CPU time / threads (steadier than wall time on a shared machine);
     norm None: the mean of the four renders."""
     cm_n, cm_per, cm_fixed = calibrate(
-        lambda n: cloudmeta_render(replace(scene, render=replace(scene.render, ms_spp=n)), 77)[2] / threads,
+        lambda n: cloudmeta_render(with_settings(scene, ms_spp=n), 77)[2] / threads,
         budget, 4, cm_cap)
     mi_n, mi_per, mi_fixed = calibrate(lambda n: mitsuba_render(mi, ms, n, 77)[2] / threads, budget, 64, mi_cap)
-    cm_scene = replace(scene, render=replace(scene.render, ms_spp=cm_n))
+    cm_scene = with_settings(scene, ms_spp=cm_n)
     imgs = {"cm": [], "mi": []}
     secs = {"cm": [], "mi": []}
     cpus = {"cm": [], "mi": []}
@@ -382,22 +373,8 @@ def print_table(title, rows, keys):
         print("  " + "  ".join(_fmt(r.get(k, "")).rjust(w) for k, w in zip(keys, widths)))
 
 
-def write_csv(name, rows):
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    keys = []
-    for r in rows:
-        keys += [k for k in r if k not in keys]
-    tmp = RESULTS / f".{name}.tmp"
-    with open(tmp, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
-    tmp.replace(RESULTS / name)
-
-
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="tiny image, one grid, short budget, no files")
+    ap = parser(__doc__, quick="tiny image, one grid, short budget, no files")
     ap.add_argument("--size", type=int, default=32, help="pixels per side (square image)")
     ap.add_argument("--grids", default="128,256,512", help="voxels along the longest side, comma separated")
     ap.add_argument("--time-grids", default="256,512", help="the grids of the equal-time runs")
@@ -414,8 +391,7 @@ def main(argv=None, quick=False):
     ap.add_argument("--save", metavar="DIR", help="also save the images (npz) there, for a closer look")
     ap.add_argument("--equal-time-only", action="store_true",
                     help="skip sections 1-2 (no converged images): noise relative to the mean of the four renders")
-    args = ap.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     if quick:
         args.size, args.grids, args.time_grids, args.budget, args.scenes = 16, "64", "64", 3.0, SCENES[0]
         args.ref_paths, args.ref_passes, args.mi_ref_spp, args.mi_ref_passes = 32, 2, 256, 2
@@ -512,15 +488,14 @@ def _report(agree_rows, time_rows, args, quick):
               f"{r['equal_noise_time_ratio_mi_over_cm']:.2f}x)")
     if not quick:
         if agree_rows:
-            write_csv("agreement.csv", agree_rows)
+            write_csv(RESULTS / "agreement.csv", agree_rows)
             print(f"wrote {RESULTS / 'agreement.csv'}")
         if time_rows:
-            write_csv("equal_time.csv", time_rows)
+            write_csv(RESULTS / "equal_time.csv", time_rows)
             print(f"wrote {RESULTS / 'equal_time.csv'}")
     # a measurement, not a pass/fail of the code: the script succeeds when it ran
     return dict(agreement=agree_rows, equal_time=time_rows, requirement_met=all(met) if met else None, passed=True)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
-    sys.exit(0)
+    run_main(main)

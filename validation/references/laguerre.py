@@ -16,7 +16,7 @@ MR = 8                        # fractional steps every MT iterations break rare 
 MT = 10
 MAXIT = MT * MR
 FRAC = np.array([0.0, 0.5, 0.25, 0.75, 0.13, 0.38, 0.62, 0.88, 1.0])
-#: the engine's compile flags (cloudmeta/config.py), so that both methods are compiled alike
+#: the engine's compile flags (cloudmeta/kernels/config.py), so that both methods are compiled alike
 NJIT = dict(cache=True, fastmath=False, nogil=True, error_model="numpy")
 BINOM = np.array([[math.comb(n, k) if k <= n else 0 for k in range(16)] for n in range(16)], dtype=np.float64)
 

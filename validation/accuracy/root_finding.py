@@ -3,24 +3,24 @@
 Three solvers find the real roots in [0, 1] of g = F - T, a degree-6 Bernstein polynomial:
 
 - Bézier clipping: the engine's ``cloudmeta.kernels.clipping.clip_roots`` (convex hull, subdivision);
-- Laguerre's method: validation/_laguerre.py (power form, all complex roots with deflation, polished), as in
+- Laguerre's method: validation/references/laguerre.py (power form, all complex roots with deflation, polished), as in
   the paper's Table 1;
 - companion matrix: the power form's companion matrix, its eigenvalues by LAPACK (numpy.linalg.eigvals
   inside numba), the real ones in [0, 1] polished by two Newton steps and kept where |g| is at rounding
   level; numpy.roots (plain Python, one call per interval) is timed alongside for scale.
 
 Intervals: the paper's (a = 1 on its whole chord, d = (0, 0, 0.59, 2.31, 0.59, 0, 0), T = -0.2, 0.5, 1.2:
-validation/root_finding_table.py, imported), four with a simple root near one end (NEAR_END), and random
+validation/accuracy/root_finding_table.py, imported), four with a simple root near one end (NEAR_END), and random
 composited intervals like the engine's: 1 to 5 balls' curves (cloudmeta.kernels.metaball.control_values,
 random a and weights, some negative, wyvill6 or murakami4) on random chords that all cover a random interval,
 each cut to it (cloudmeta.kernels.bernstein.subdivide) and added, minus a threshold (45 % chosen on the curve,
 so that most intervals hold roots; 10 % at the curve's largest value, a touch: a double root where it is
 interior). Time per interval: the best of several timings of a numba loop over all intervals of a group, after
 warm-up. Iterations per root: clipping steps (a Python mirror of clip_roots's loop,
-validation/root_finding_table.clipping_steps) and Laguerre iterations (search + polish, over the degree's
+validation/accuracy/root_finding_table.clipping_steps) and Laguerre iterations (search + polish, over the degree's
 complex roots).
 
-    python -m validation.root_finding [--intervals 3000] [--runs 5] [--tol 1e-9] [--quick]
+    python -m validation.accuracy.root_finding [--intervals 3000] [--runs 5] [--tol 1e-9] [--quick]
 
 Requirement: the three solvers agree on the roots (count, and positions to 1e-7) on every interval whose
 roots are simple (|g'| at every root above 1e-3 of max |g|; tangencies are counted apart: clipping drops a
@@ -29,15 +29,8 @@ and root_finding.png.
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import math
-import sys
 import time
-from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 from numba import njit
@@ -45,10 +38,10 @@ from numba import njit
 from cloudmeta.kernels.bernstein import subdivide
 from cloudmeta.kernels.clipping import clip_roots
 from cloudmeta.kernels.metaball import MURAKAMI4, WYVILL6, control_values
-from validation._laguerre import bernstein_to_power, laguerre_roots, scratch as laguerre_scratch
-from validation.root_finding_table import D_PAPER, THRESHOLDS, clipping_scratch, clipping_steps
+from validation.accuracy.root_finding_table import D_PAPER, THRESHOLDS, clipping_scratch, clipping_steps
+from validation.common import parse, parser, print_head, pyplot, run_main, save_figure, write_results
+from validation.references.laguerre import bernstein_to_power, laguerre_roots, scratch as laguerre_scratch
 
-RESULTS = Path(__file__).resolve().parent / "results"
 #: intervals with a simple root near one end (found by this script's random search, and built by hand):
 #: clipping converges onto the root from one side there
 NEAR_END = np.array([
@@ -297,9 +290,7 @@ def group_row(name, G, sol, tol, runs, numpy_too=True):
 
 
 def plot(rows, out):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
     x = np.arange(len(rows))
     wdt = 0.27
@@ -319,21 +310,17 @@ def plot(rows, out):
     ax2.set_xticklabels([r["group"] for r in rows], rotation=30, ha="right", fontsize=7)
     ax2.set_title("iterations (no bar for 'per root': the group has no roots)")
     ax2.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
+    save_figure(fig, out)
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__, quick="150 intervals, one timing")
     ap.add_argument("--intervals", type=int, default=None, help="random intervals (default 3000; 150 quick)")
     ap.add_argument("--runs", type=int, default=None,
                     help="timings per solver and group, best kept (default 5; 1 quick)")
     ap.add_argument("--tol", type=float, default=1e-9, help="root tolerance in s (default 1e-9)")
     ap.add_argument("--seed", type=int, default=4)
-    ap.add_argument("--quick", action="store_true")
-    args = ap.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     n = args.intervals or (150 if quick else 3000)
     runs = args.runs or (1 if quick else 5)
     tol = args.tol
@@ -362,8 +349,7 @@ def main(argv=None, quick=False):
     head = (f"{'group':20s} {'ivals':>5s} {'roots':>5s} {'clip ns':>8s} {'Lag ns':>8s} {'comp ns':>8s} "
             f"{'np.roots us':>11s} {'Lag/clip':>8s} {'clip st/iv':>10s} {'clip st/root':>12s} {'Lag it/root':>11s} "
             f"{'mismatch':>8s} {'tangent':>7s} {'max dr':>8s}")
-    print(head)
-    print("-" * len(head))
+    print_head(head)
     for r in rows:
         print(f"{r['group']:20s} {r['intervals']:5d} {r['roots']:5d} {r['clip_ns']:8.1f} {r['laguerre_ns']:8.1f} "
               f"{r['companion_ns']:8.1f} {r['numpy_roots_us']:11.1f} {r['laguerre_ns'] / r['clip_ns']:7.1f}x "
@@ -397,15 +383,9 @@ def main(argv=None, quick=False):
           f"({'yes' if mismatch == 0 else f'NO: {mismatch}'}); clipping faster than Laguerre on every group "
           f"({'yes' if faster else 'NO'})   [{elapsed:.1f} s]")
     if not quick:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "root_finding.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-        plot(rows, RESULTS / "root_finding.png")
-        print(f"wrote {RESULTS / 'root_finding.csv'} and {RESULTS / 'root_finding.png'}")
+        write_results("root_finding", rows, plot)
     return dict(rows=rows, passed=passed, mismatches=mismatch, seconds=elapsed)
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

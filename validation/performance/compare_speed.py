@@ -7,12 +7,11 @@ For each checkout (a folder holding the cloudmeta package), alternating between 
   times the cumulus at 512 x 512 with the default settings ``--repeat`` times.
 Prints the median and the spread (min - max) of each figure per checkout.
 
-    python -m validation.compare_speed /path/to/old /path/to/new [--rounds 3] [--repeat 2]
-    python -m validation.compare_speed OLD NEW --caches OLD_CACHE NEW_CACHE   (warm only, filled caches)
+    python -m validation.performance.compare_speed /path/to/old /path/to/new [--rounds 3] [--repeat 2]
+    python -m validation.performance.compare_speed OLD NEW --caches OLD_CACHE NEW_CACHE   (warm only, filled caches)
 """
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
 import subprocess
@@ -21,6 +20,8 @@ import tempfile
 import textwrap
 import time
 from pathlib import Path
+
+from validation.common import parse, parser, run_main
 
 _COLD = textwrap.dedent("""
     import cloudmeta as cm
@@ -46,14 +47,14 @@ def run(root, code, cache):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("roots", nargs="+")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--skip-cold", action="store_true")
     ap.add_argument("--caches", nargs="+", default=None,
                     help="an existing cache folder per checkout, for the warm figure only (no cold compile)")
-    args = ap.parse_args(argv)
+    args, _ = parse(ap, argv)
     caches = dict(zip(args.roots, args.caches)) if args.caches else {}
     cold = {r: [] for r in args.roots}
     warm = {r: [] for r in args.roots}
@@ -76,7 +77,8 @@ def main(argv=None):
             if v:
                 print(f"{root:40s} {name:34s} median {statistics.median(v):8.3f}  min {min(v):8.3f}  "
                       f"max {max(v):8.3f}  n {len(v)}")
+    return dict(cold=cold, warm=warm)
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

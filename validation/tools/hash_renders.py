@@ -5,24 +5,17 @@ aspect; spp as the scene says), plus a few variants (shadow maps, 2 spp, the dep
 preset, a scene with its ambient removed), and prints one line per render: its name and the SHA-256 of the
 float32 image bytes (and of the float64 depth bytes where asked).
 
-    python -m validation.hash_renders [--width 72] > hashes.txt
+    python -m validation.tools.hash_renders [--width 72] > hashes.txt
 """
 from __future__ import annotations
 
-import argparse
 import hashlib
-import sys
 from dataclasses import replace
-from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
 import cloudmeta as cm
-
-ROOT = Path(__file__).resolve().parent.parent
+from validation.common import ROOT, parse, parser, run_main, with_settings
 
 
 def sha(a):
@@ -33,9 +26,7 @@ def small(path, width, **render_settings):
     s = cm.load_scene(path)
     h = max(1, round(width * s.image.height / s.image.width))
     s = cm.load_scene(path, width=width, height=h)
-    if render_settings:
-        s = replace(s, render=replace(s.render, **render_settings))
-    return s
+    return with_settings(s, **render_settings) if render_settings else s
 
 
 def cases(width):
@@ -58,17 +49,19 @@ def cases(width):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("--width", type=int, default=72)
-    args = ap.parse_args(argv)
+    args, _ = parse(ap, argv)
+    hashes = {}
     for name, scene, depth in cases(args.width):
         if depth:
             img, dep = cm.render(scene, progress=False, depth=True)
-            print(f"{name:45s} {sha(img)} depth {sha(dep)}", flush=True)
+            hashes[name] = f"{sha(img)} depth {sha(dep)}"
         else:
-            img = cm.render(scene, progress=False)
-            print(f"{name:45s} {sha(img)}", flush=True)
+            hashes[name] = sha(cm.render(scene, progress=False))
+        print(f"{name:45s} {hashes[name]}", flush=True)
+    return dict(hashes=hashes)
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

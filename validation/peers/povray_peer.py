@@ -25,11 +25,10 @@ the light (the hit points from ``cloudmeta.first_hit`` on the renderer's pixel-c
 Needs Debian's ``povray`` (``apt-get install povray``); without it this prints how to get it and exits 0.
 POV-Ray uses one thread per core it is given (+WT2); cloudmeta all of numba's threads.
 
-    python -m validation.povray_peer [--repeats 5] [--scenes b890 b1630] [--keep DIR]
+    python -m validation.peers.povray_peer [--repeats 5] [--scenes b890 b1630] [--keep DIR]
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import re
@@ -41,12 +40,10 @@ import tempfile
 import time
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+from validation.common import ROOT, alternate, parse, parser, run_main
+
 PEERS = Path(os.environ.get("CLOUDMETA_POVRAY_PEERS", ROOT.parent / "shared" / "peers" / "povray"))  # shared/ beside the checkout
 if not PEERS.is_dir():
     PEERS = ROOT / "validation" / "peers" / "povray"
@@ -102,7 +99,7 @@ def write_scene(pov, folder, name):
     fmt = lambda v: "[" + ", ".join(f"{float(x):.9g}" for x in v) + "]"  # noqa: E731
     path = Path(folder) / f"{name}.yaml"
     path.write_text(
-        f"# {name}.pov of shared/peers/povray as a cloudmeta scene (validation/povray_peer.py)\n"
+        f"# {name}.pov of shared/peers/povray as a cloudmeta scene (validation/peers/povray_peer.py)\n"
         f"image: {{width: {WIDTH}, height: {HEIGHT}, spp: 1}}\n"
         f"camera: {{position: {fmt(pov['location'])}, look_at: {fmt(pov['look_at'])}, up: [0, 0, 1], "
         f"fov: {vertical_fov(pov['angle'], WIDTH, HEIGHT):.12g}}}\n"
@@ -131,17 +128,6 @@ def run_timed(argv, env=None, cwd=None):
         tail = done.stdout.decode(errors="replace")[-2000:]
         raise SystemExit(f"{argv[0]} failed ({done.returncode}): {' '.join(map(str, argv))}\n{tail}")
     return took
-
-
-def alternate(commands, repeats):
-    """{name: [wall times]}: every command run once untimed, then the commands in turn, ``repeats`` rounds."""
-    for argv, env, cwd in commands.values():
-        run_timed(argv, env, cwd)
-    times = {name: [] for name in commands}
-    for _ in range(repeats):
-        for name, (argv, env, cwd) in commands.items():
-            times[name].append(run_timed(argv, env, cwd))
-    return times
 
 
 def read_ppm16(path):
@@ -218,12 +204,12 @@ def spread(values):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("--repeats", type=int, default=5, help="timed runs of each process (default 5)")
     ap.add_argument("--scenes", nargs="+", default=list(SCENES), choices=SCENES)
     ap.add_argument("--peers", type=Path, default=PEERS, help="folder of the .pov files")
     ap.add_argument("--keep", type=Path, help="keep scenes and images in this folder")
-    args = ap.parse_args(argv)
+    args, _ = parse(ap, argv)
     if shutil.which("povray") is None:
         print("povray_peer: skipped: `povray` is not on PATH. It is Debian's package `povray` "
               "(sudo apt-get install povray); this script installs nothing.")
@@ -245,7 +231,7 @@ def main(argv=None):
                 "povray": (povray_argv(pov_path, folder / f"{name}_povray.png"), None, folder),
                 "cloudmeta": (cloudmeta_argv(scene, folder / f"{name}.exr", folder / f"{name}.png"), env, ROOT),
             }
-            times = alternate(commands, args.repeats)
+            times = alternate(commands, args.repeats, run_timed)
             ratio = statistics.median(times["cloudmeta"]) / statistics.median(times["povray"])
             print(f"{name:6s} {len(pov['balls']):6d} {spread(times['povray']):>28s} {spread(times['cloudmeta']):>28s} "
                   f"{ratio:5.2f}x", flush=True)
@@ -263,4 +249,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    run_main(main)

@@ -16,32 +16,25 @@
    part (from the per-pixel standard errors), extrapolated to 512^2 at 1 % relative RMSE (time scales
    with pixels x paths; error with 1 / sqrt(paths)). Labelled as extrapolated.
 
-    python -m validation.multiple_scattering [--quick] [--skip-cumulus]
+    python -m validation.accuracy.multiple_scattering [--quick] [--skip-cumulus]
+    python -m validation.accuracy.multiple_scattering --figures docs/multiple_cumulus.png [--size 256] [--paths 64]
 
 Writes validation/results/multiple_scattering.csv (full runs only).
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import math
-import sys
 import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 import numba
 import numpy as np
 
 import cloudmeta as cm
-from cloudmeta.multiple import render_multiple
-
-ROOT = Path(__file__).resolve().parent.parent
-RESULTS = Path(__file__).resolve().parent / "results"
+from cloudmeta.renderer.multiple import render_multiple
+from validation.common import ROOT, parse, parser, run_main, with_settings, write_csv
 
 FURNACE = """
 image: {{width: {n}, height: {n}, spp: 1}}
@@ -150,7 +143,7 @@ def slab_radiance(tmp, tau, albedo, g, nu, reflected, paths, target_rel, max_sec
                        paths=paths)
     scene = cm.load_scene(_write(tmp, "slab.yaml", text))
     t0 = time.perf_counter()
-    single = cm.render(replace(scene, render=replace(scene.render, scattering="single")), progress=False)
+    single = cm.render(with_settings(scene, scattering="single"), progress=False)
     single = float(single[..., 0].astype(np.float64).mean())
     means, variances = [], []
     while True:
@@ -206,7 +199,7 @@ def cumulus(size, paths):
     for name in ("cumulus", "cumulus_backlit"):
         scene = cm.load_scene(ROOT / "scenes" / f"{name}.yaml", width=size, height=size)
         scene = replace(scene, ambient=None, render=replace(scene.render, scattering="multiple", ms_spp=paths))
-        single_scene = replace(scene, render=replace(scene.render, scattering="single"))
+        single_scene = with_settings(scene, scattering="single")
         t0 = time.perf_counter()
         single = cm.render(single_scene, progress=False)[..., :3].astype(np.float64)
         t_single = time.perf_counter() - t0
@@ -237,7 +230,7 @@ def figures(size, paths, out):
     under each picture (docs/multiple_cumulus.png), all at exposure EXPOSURE."""
     from PIL import Image, ImageDraw
 
-    from cloudmeta.colour import encode_srgb
+    from cloudmeta.scene.colour import encode_srgb
     tiles = []
     for name in ("cumulus", "cumulus_backlit"):
         scene = cm.load_scene(ROOT / "scenes" / f"{name}.yaml", width=size, height=size)
@@ -246,8 +239,7 @@ def figures(size, paths, out):
         t_single = time.perf_counter() - t0
         multi_scene = replace(scene, ambient=None, render=replace(scene.render, scattering="multiple", ms_spp=paths))
         t0 = time.perf_counter()
-        base = cm.render(replace(multi_scene, render=replace(multi_scene.render, scattering="single")),
-                         progress=False)[..., :3].astype(np.float64)
+        base = cm.render(with_settings(multi_scene, scattering="single"), progress=False)[..., :3].astype(np.float64)
         mean, err = render_multiple(multi_scene)
         t_multi = time.perf_counter() - t0
         multi = base + mean
@@ -267,15 +259,13 @@ def figures(size, paths, out):
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="small furnace, one slab case, small cumulus")
+    ap = parser(__doc__, quick="small furnace, one slab case, small cumulus")
     ap.add_argument("--skip-cumulus", action="store_true")
     ap.add_argument("--skip-slab", action="store_true")
     ap.add_argument("--figures", metavar="PNG", help="only the side-by-side cumulus pictures, written to PNG")
     ap.add_argument("--size", type=int, default=256, help="--figures: pixels per side")
     ap.add_argument("--paths", type=int, default=64, help="--figures: Monte Carlo paths per pixel")
-    args = ap.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     if args.figures:
         figures(args.size, args.paths, args.figures)
         return dict(passed=True)
@@ -297,14 +287,10 @@ def main(argv=None, quick=False):
         cum_rows = cumulus(32 if quick else 128, 4 if quick else 16)
     passed = f["passed"] and all(r["passed"] for r in slab_rows)
     if not quick and slab_rows:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "multiple_scattering.csv", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(slab_rows[0]))
-            w.writeheader()
-            w.writerows(slab_rows)
+        write_csv("multiple_scattering.csv", slab_rows)
     print("PASS" if passed else "FAIL")
     return dict(furnace=f, slab=slab_rows, cumulus=cum_rows, passed=passed)
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

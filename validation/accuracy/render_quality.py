@@ -9,41 +9,23 @@ It also checks that the reference itself has converged, by rendering a smaller i
 tighter still (``--check-size``). Writes validation/results/render_quality.csv and a Pareto plot
 render_quality.png (time against error).
 
-    python -m validation.render_quality [--size 512] [--scenes scenes/cumulus.yaml ...] [--quick]
+    python -m validation.accuracy.render_quality [--size 512] [--scenes scenes/cumulus.yaml ...] [--quick]
 """
 from __future__ import annotations
 
-import argparse
-import csv
-import sys
 import time
-from dataclasses import replace
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
 import cloudmeta as cm
+from validation.common import ROOT, parse, parser, pyplot, rel_rmse, run_main, save_figure, with_settings, write_results
 
-ROOT = Path(__file__).resolve().parent.parent
-RESULTS = Path(__file__).resolve().parent / "results"
 PRESETS = ("draft", "default", "fine")
 #: tighter than ``reference``: used only to show that the reference has converged
 ULTRA = dict(quality="reference", tolerance=1e-8, max_tau=0.05, cutoff=0.0)
 #: ULTRA's longest step, as a fraction of the scene's diagonal (reference: 1/128)
 ULTRA_LENGTH = 1 / 512
-
-
-def rel_rmse(img, ref):
-    a = np.asarray(img, np.float64)[..., :3]
-    b = np.asarray(ref, np.float64)[..., :3]
-    return float(np.sqrt(np.mean((a - b) ** 2)) / np.sqrt(np.mean(b ** 2)))
-
-
-def with_quality(scene, **settings):
-    return replace(scene, render=replace(scene.render, **settings))
 
 
 def timed_render(scene):
@@ -55,26 +37,24 @@ def timed_render(scene):
 def run_scene(path, size, check_size):
     scene = cm.load_scene(path, width=size, height=size)
     cm.render(cm.load_scene(path, width=8, height=8), progress=False)  # compile (or load the cache) first
-    ref, t_ref = timed_render(with_quality(scene, quality="reference"))
+    ref, t_ref = timed_render(with_settings(scene, quality="reference"))
     rows = []
     for preset in PRESETS:
-        img, t = timed_render(with_quality(scene, quality=preset))
+        img, t = timed_render(with_settings(scene, quality=preset))
         rows.append(dict(scene=Path(path).stem, size=size, setting=preset, seconds=t, rel_rmse=rel_rmse(img, ref),
                          max_abs=float(np.abs(img[..., :3] - ref[..., :3]).max())))
     rows.append(dict(scene=Path(path).stem, size=size, setting="reference", seconds=t_ref, rel_rmse=0.0, max_abs=0.0))
     small = cm.load_scene(path, width=check_size, height=check_size)
-    ref_small, _ = timed_render(with_quality(small, quality="reference"))
+    ref_small, _ = timed_render(with_settings(small, quality="reference"))
     lo, hi = small.bbox()
-    ultra, _ = timed_render(with_quality(small, **ULTRA, max_length=ULTRA_LENGTH * float(np.linalg.norm(hi - lo))))
+    ultra, _ = timed_render(with_settings(small, **ULTRA, max_length=ULTRA_LENGTH * float(np.linalg.norm(hi - lo))))
     rows.append(dict(scene=Path(path).stem, size=check_size, setting="reference vs tighter", seconds=float("nan"),
                      rel_rmse=rel_rmse(ref_small, ultra), max_abs=float(np.abs(ref_small - ultra)[..., :3].max())))
     return rows
 
 
 def plot(rows, out):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
     for scene in dict.fromkeys(r["scene"] for r in rows):
         pts = [r for r in rows if r["scene"] == scene and r["setting"] in PRESETS]
@@ -89,18 +69,15 @@ def plot(rows, out):
     ax.set_ylabel("relative RMSE vs reference")
     ax.set_title("cloudmeta: time against error")
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
+    save_figure(fig, out)
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__, quick="small images, for a test")
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--check-size", type=int, default=96)
     ap.add_argument("--scenes", nargs="+", default=[str(ROOT / "scenes" / "cumulus.yaml")])
-    ap.add_argument("--quick", action="store_true", help="small images, for a test")
-    args = ap.parse_args(argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     size, check = (48, 24) if quick else (args.size, args.check_size)
     rows = [r for s in args.scenes for r in run_scene(s, size, check)]
     print(f"{'scene':18s} {'size':>5s} {'setting':22s} {'time [s]':>9s} {'rel RMSE':>10s} {'max abs':>10s}")
@@ -110,15 +87,9 @@ def main(argv=None, quick=False):
     default_ok = all(r["rel_rmse"] < 1e-3 for r in rows if r["setting"] == "default")
     print(f"default setting below 1e-3 relative RMSE on every scene: {'PASS' if default_ok else 'FAIL'}")
     if not quick:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "render_quality.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-        plot(rows, RESULTS / "render_quality.png")
-        print(f"wrote {RESULTS / 'render_quality.csv'} and {RESULTS / 'render_quality.png'}")
+        write_results("render_quality", rows, plot)
     return dict(rows=rows, passed=default_ok)
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

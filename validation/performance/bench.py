@@ -7,8 +7,8 @@ Prints, in one run:
   wall time of ``python -c "import cloudmeta"`` next to that of ``python -c pass``;
 - with ``--cold``: the first render of the cumulus (4 x 3) from an empty kernel cache in a fresh process,
   split into compiling and the rest, with the functions that take longest to compile
-  (validation/compile_profile.py; minutes);
-- with ``--peer``: the POV-Ray comparison of validation/povray_peer.py when ``povray`` is on PATH;
+  (validation/performance/compile_profile.py; minutes);
+- with ``--peer``: the POV-Ray comparison of validation/peers/povray_peer.py when ``povray`` is on PATH;
 - JIT compile time, cold (an empty cache, in a fresh process) and cached (a second fresh process), each
   as the wall time of a process that imports cloudmeta and renders a 16 x 16 image;
 - BVH build time for 1,000 to 100,000 balls;
@@ -20,15 +20,14 @@ Prints, in one run:
   sheet over a fixed area whose balls shrink as N^(-1/2), so that a ray meets about as many balls at every
   N and the time measures the cost of culling, not of deeper clouds.
 
-    python -m validation.bench [--size 512] [--scale-size 256] [--quick] [--repeats 7] [--cold] [--peer]
-    python -m validation.bench --startup [--against /tmp/old-checkout] [--cold] [--peer]   # #14's figures only
+    python -m validation.performance.bench [--size 512] [--scale-size 256] [--quick] [--repeats 7] [--cold] [--peer]
+    python -m validation.performance.bench --startup [--against /tmp/old-checkout] [--cold] [--peer]  # #14's only
+    python -m validation.performance.bench --issue11 [--repeats 5]  # #11's speed figures only
 
 Writes validation/results/bench.csv.
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import os
 import statistics
 import subprocess
@@ -36,19 +35,15 @@ import sys
 import tempfile
 import textwrap
 import time
+from dataclasses import replace
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
 import cloudmeta as cm
 from cloudmeta.kernels.bvh import build_bvh
-from validation.render_quality import rel_rmse, with_quality
+from validation.common import RESULTS, ROOT, alternate, parse, parser, rel_rmse, run_main, with_settings, write_csv
 
-ROOT = Path(__file__).resolve().parent.parent
-RESULTS = Path(__file__).resolve().parent / "results"
 CUMULUS = ROOT / "scenes" / "cumulus.yaml"
 
 _PROBE = textwrap.dedent(f"""
@@ -97,20 +92,15 @@ def startup(repeats, against=None):
     with tempfile.TemporaryDirectory() as out:
         commands = {(label, what): cmd for label, root in roots.items()
                     for what, cmd in startup_commands(root, out).items()}
-        for argv, cwd, env in commands.values():
-            whole_process(argv, cwd, env)
-        times = {key: [] for key in commands}
-        for _ in range(repeats):
-            for key, (argv, cwd, env) in commands.items():
-                times[key].append(whole_process(argv, cwd, env))
-    return times
+        return alternate(commands, repeats, whole_process)
 
 
 def cold_compile():
     """The compile_profile --cold summary of a fresh process: (wall of the process, its result lines)."""
     start = time.perf_counter()
-    out = subprocess.run([sys.executable, "-m", "validation.compile_profile", "--cold", "--top", "8"], cwd=ROOT,
-                         env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-m", "validation.performance.compile_profile", "--cold", "--top", "8"],
+                         cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True,
+                         check=True)
     return time.perf_counter() - start, out.stdout
 
 
@@ -132,7 +122,7 @@ def issue14(report, repeats, against, cold, peer):
         report("cold start: fresh process, empty cache, 4x3 cumulus (whole process)", wall, "s")
         print(textwrap.indent(text.rstrip(), "    "))
     if peer:
-        from validation import povray_peer
+        from validation.peers import povray_peer
         povray_peer.main(["--repeats", str(max(1, repeats // 2 + 1))])
 
 
@@ -192,13 +182,11 @@ def issue11(report, repeats, size=512):
     its lights removed (the view rays alone), alternating lit and lightless; and the 1,200-ball bank
     (scenes/dense_1000.yaml). Render time inside one process (kernels loaded outside the clock); median and
     spread of ``repeats`` renders each."""
-    from dataclasses import replace
-
     cases = [("cumulus front-lit", ROOT / "scenes" / "cumulus.yaml"),
              ("cumulus back-lit", ROOT / "scenes" / "cumulus_backlit.yaml"),
              ("bank, 1,200 balls", ROOT / "scenes" / "dense_1000.yaml")]
     for label, path in cases:
-        lit = with_quality(cm.load_scene(path, width=size, height=size), quality="default", shadows="exact")
+        lit = with_settings(cm.load_scene(path, width=size, height=size), quality="default", shadows="exact")
         dark = replace(lit, lights=())
         cm.render(cm.load_scene(path, width=4, height=4), progress=False)  # load the kernels outside the clock
         cm.render(replace(cm.load_scene(path, width=4, height=4), lights=()), progress=False)
@@ -215,18 +203,16 @@ def issue11(report, repeats, size=512):
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__, quick="small images, fewer balls, no cold start")
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--scale-size", type=int, default=256)
-    ap.add_argument("--quick", action="store_true")
     ap.add_argument("--repeats", type=int, default=7, help="runs of each start-up command (default 7)")
     ap.add_argument("--against", help="another checkout: its start-up alternates with this one's")
     ap.add_argument("--cold", action="store_true", help="also the first render from an empty cache (minutes)")
     ap.add_argument("--peer", action="store_true", help="also the POV-Ray comparison (needs povray)")
     ap.add_argument("--startup", action="store_true", help="only issue #14's figures")
     ap.add_argument("--issue11", action="store_true", help="only issue #11's speed figures (lit against lightless)")
-    args = ap.parse_args(argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     size, scale_size = (32, 24) if quick else (args.size, args.scale_size)
     counts = (1000, 10000) if quick else (1000, 10000, 100000)
     rows = []
@@ -265,15 +251,15 @@ def main(argv=None, quick=False):
     scene = cm.load_scene(CUMULUS, width=size, height=size)
     tiny = cm.load_scene(CUMULUS, width=8, height=8)
     cm.render(tiny, progress=False)  # compile (or load) both shadow modes outside the clock
-    cm.render(with_quality(tiny, shadows="map", shadow_map=8), progress=False)
-    ref, t_ref = timed(with_quality(scene, quality="reference"))
+    cm.render(with_settings(tiny, shadows="map", shadow_map=8), progress=False)
+    ref, t_ref = timed(with_settings(scene, quality="reference"))
     report(f"cumulus {size}^2 reference (exact shadows)", t_ref, "s")
     for label, kw in (("default, exact shadows", dict(quality="default")),
                       ("draft, exact shadows", dict(quality="draft")),
                       ("default, shadow map 384", dict(quality="default", shadows="map", shadow_map=384)),
                       ("draft, shadow map 384", dict(quality="draft", shadows="map", shadow_map=384)),
                       ("draft, shadow map 256", dict(quality="draft", shadows="map", shadow_map=256))):
-        img, t = timed(with_quality(scene, **kw))
+        img, t = timed(with_settings(scene, **kw))
         report(f"cumulus {size}^2 {label}: time", t, "s")
         report(f"cumulus {size}^2 {label}: rel. RMSE vs reference", rel_rmse(img, ref), "")
 
@@ -290,14 +276,10 @@ def main(argv=None, quick=False):
         ratio = times[counts[-1]] / times[1000]
         report(f"time ratio {counts[-1]} / 1000 balls", ratio, "x")
     if not quick:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "bench.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=["what", "value", "unit"])
-            w.writeheader()
-            w.writerows(rows)
+        write_csv("bench.csv", rows, ["what", "value", "unit"])
         print(f"wrote {RESULTS / 'bench.csv'}")
     return dict(rows=rows, passed=True)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    run_main(main)

@@ -1,12 +1,13 @@
 """The accuracy scene suite of issue #11 (scenes/suite/): the scenes, their axes, the settings and the cache.
 
-Shared by validation/suite_references.py (converged references, cached), validation/suite_accuracy.py (the
-presets' true error) and tests/test_suite.py. The scenes themselves are written by
+Shared by validation/accuracy/suite_references.py (converged references, cached),
+validation/accuracy/suite_accuracy.py (the presets' true error), validation/accuracy/error_estimate.py and
+tests/renderer/test_suite.py. The scenes themselves are written by
 scenes/suite/make_suite.py; each YAML's first line names its place on every axis:
 
     # suite: lighting=front geometry=cumulus density=field phase=hg ambient=yes
 
-Error measure (the same as validation/render_quality.py's ``rel_rmse``, over the RGB of the whole image):
+Error measure (validation/common.py's ``rel_rmse``, over the RGB of the whole image):
 
     rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / sqrt(mean over pixels and RGB of L_ref^2)
 
@@ -19,16 +20,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 import cloudmeta as cm
+from validation.common import RESULTS, ROOT, rel_rmse, with_settings
 
-ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "scenes" / "suite"
-CACHE = Path(__file__).resolve().parent / "results" / "suite"
+CACHE = RESULTS / "suite"
 
 #: every axis and its values; each value must be covered by at least two scenes
 AXES = {
@@ -76,19 +76,9 @@ def coverage(paths=None):
     return cov
 
 
-def with_settings(scene, **settings):
-    return replace(scene, render=replace(scene.render, **settings))
-
-
 def tighter(scene):
     lo, hi = scene.bbox()
     return with_settings(scene, **TIGHTER, max_length=TIGHTER_LENGTH * float(np.linalg.norm(hi - lo)))
-
-
-def rel_rmse(img, ref):
-    a = np.asarray(img, np.float64)[..., :3]
-    b = np.asarray(ref, np.float64)[..., :3]
-    return float(np.sqrt(np.mean((a - b) ** 2)) / np.sqrt(np.mean(b ** 2)))
 
 
 def rel_rmse_scattered(img, ref, background):
@@ -96,10 +86,9 @@ def rel_rmse_scattered(img, ref, background):
     and RGB of (L - L_ref)^2) / sqrt(mean of S_ref^2), S_ref = L_ref - L_bg T_ref (T_ref = 1 - alpha). The
     background's share L_bg T is exact at every setting (the view transmittance is), so the numerator is the
     same; this measure does not shrink as the sky gets brighter or covers more of the frame."""
-    a = np.asarray(img, np.float64)[..., :3]
     b = np.asarray(ref, np.float64)
     s = b[..., :3] - np.asarray(background, np.float64) * (1.0 - b[..., 3:4])
-    return float(np.sqrt(np.mean((a - b[..., :3]) ** 2)) / np.sqrt(np.mean(s ** 2)))
+    return rel_rmse(img, b, norm=np.sqrt(np.mean(s ** 2)))
 
 
 def worst_pixel(img, ref):
@@ -112,9 +101,11 @@ def worst_pixel(img, ref):
 
 
 def fingerprint(path):
-    """A hash of what a reference depends on: the YAML, the balls files it names, the two settings."""
+    """A hash of what a reference depends on: the YAML (less its comment lines, which change no pixel), the
+    balls files it names, the two settings."""
     path = Path(path)
-    h = hashlib.sha256(path.read_bytes())
+    text = path.read_text(encoding="utf-8")
+    h = hashlib.sha256("\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#")).encode())
     scene = cm.load_scene(path)
     for text in path.read_text(encoding="utf-8").splitlines():
         if "balls_file:" in text:

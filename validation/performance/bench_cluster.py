@@ -1,8 +1,8 @@
 """The cost of a Dask cluster: an animation rendered on a 2-worker local cluster against the same frames
 rendered in this one process, side by side (alternating), with the frames checked bit-identical.
 
-    python validation/bench_cluster.py [--scene scenes/merging_clouds.yaml] [--frames 24] [--size 256]
-        [--quality draft] [--repeats 3] [--workers 2]
+    python -m validation.performance.bench_cluster [--scene scenes/merging_clouds.yaml] [--frames 24]
+        [--size 256] [--quality draft] [--repeats 3] [--workers 2]
 
 Three figures per repeat: this process alone (numba on every core); the cluster with a client started
 beforehand and its workers warmed (the cluster's own overhead: task and pixel transfer, per-task scene
@@ -12,11 +12,9 @@ repeats with the spread (min..max). On a shared machine the figures are noisy: c
 """
 from __future__ import annotations
 
-import argparse
 import logging
 import os
 import statistics
-import sys
 import tempfile
 import time
 import warnings
@@ -24,11 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-import cloudmeta as cm  # noqa: E402
-from cloudmeta.cluster import render_frames  # noqa: E402
+import cloudmeta as cm
+from cloudmeta.cluster import render_frames
+from validation.common import ROOT, parse, parser, run_main
 
 
 def timed(fn):
@@ -38,14 +34,14 @@ def timed(fn):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = parser(__doc__)
     p.add_argument("--scene", default=str(ROOT / "scenes" / "merging_clouds.yaml"))
     p.add_argument("--frames", type=int, default=24)
     p.add_argument("--size", type=int, default=256)
     p.add_argument("--quality", default="draft")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--workers", type=int, default=2)
-    args = p.parse_args(argv)
+    args, _ = parse(p, argv)
     from distributed import Client, LocalCluster
     warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
 
@@ -88,7 +84,8 @@ def main(argv=None):
         print(f"{label:<46}{med:>10.2f}{f'{min(times[k]):.2f}..{max(times[k]):.2f}':>16}{med / args.frames:>11.3f}"
               f"{(med - local) / local * 100:>+9.1f}%")
     print(f"frames bit-identical between this process and the cluster: {same}")
+    return dict(times=times, identical=same, passed=same)
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

@@ -4,7 +4,7 @@ of 1 to 2,000 balls.
 For each kernel (wyvill6, murakami4, nishimura, blinn), density mode (field, excess, uniform) and shape
 (spheres, rotated ellipsoids), random blobs of 1, 3, 10, 100 and 2,000 balls (two of each size but 1: all
 weights positive, and some negative) are crossed by random rays from outside (half aimed at a ball);
-cm.optical_depth is compared with the reference of validation/optical_depth_vs_quadrature.py
+cm.optical_depth is compared with the reference of validation/accuracy/optical_depth_vs_quadrature.py
 (scipy.integrate.quad of sigma_t on the plain numpy field of MODEL.md §1, between break points: chord ends,
 the engine's roots and independently found roots), whose functions are imported here. On a big blob the
 reference only sees the balls the ray meets (the others are 0 on the ray), which keeps quad affordable.
@@ -14,7 +14,7 @@ on a fine sampling refined by brentq (these kernels are not polynomials on a cho
 could not trace (cm.optical_depth raising cloudmeta.InputError) would be listed as "not traceable yet"
 rather than left out.
 
-    python -m validation.optical_depth [--rays-per-blob 16] [--seed 2] [--quick]
+    python -m validation.accuracy.optical_depth [--rays-per-blob 16] [--seed 2] [--quick]
 
 Requirement: relative error below 1e-9 on every ray with a positive reference (and |tau| <= 1e-12 where
 the reference is 0). Writes validation/results/optical_depth.csv (per case), optical_depth_sizes.csv
@@ -22,25 +22,18 @@ the reference is 0). Writes validation/results/optical_depth.csv (per case), opt
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import itertools
-import sys
 import time
 import warnings
-from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 from scipy.integrate import IntegrationWarning, quad
 from scipy.optimize import brentq
 
 import cloudmeta as cm
-from validation.optical_depth_vs_quadrature import PlainBlob, random_rays, reference_ray
+from validation.accuracy.optical_depth_vs_quadrature import PlainBlob, random_rays, reference_ray
+from validation.common import RESULTS, parse, parser, print_head, pyplot, run_main, save_figure, write_csv
 
-RESULTS = Path(__file__).resolve().parent / "results"
 REL_LIMIT = 1e-9
 ZERO_ABS_LIMIT = 1e-12
 KERNELS = ("wyvill6", "murakami4", "nishimura", "blinn")
@@ -99,7 +92,7 @@ def random_blob(rng, n, kernel, shape, negative):
 def reference_generic(plain, o, d, mode, scale, engine_roots):
     """quad of sigma_t for a non-polynomial kernel: break points at chord ends, engine roots, the nishimura
     kink (u = 1/9) and roots found on a fine sampling of every chord interval, refined by brentq."""
-    from validation.optical_depth_vs_quadrature import sigma_t
+    from validation.accuracy.optical_depth_vs_quadrature import sigma_t
     t0, t1, hit, (A, b, c0) = plain.chords(o, d)
     ends = np.unique(np.concatenate([t0[hit], t1[hit]]))
     if len(ends) == 0:
@@ -186,9 +179,7 @@ def summarise(rows):
 
 
 def plot(rows, per_case, out):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw=dict(width_ratios=[1.1, 1]))
     labels, mx, md, colours = [], [], [], []
     for case, s in per_case.items():
@@ -226,19 +217,15 @@ def plot(rows, per_case, out):
     ax2.set_title("every ray, against the scene's size", fontsize=9)
     ax2.legend(fontsize=8)
     fig.suptitle("cloudmeta.optical_depth against scipy quad of the plain field")
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
+    save_figure(fig, out)
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__, quick="smaller scenes and fewer rays, for the test")
     ap.add_argument("--rays-per-blob", type=int, default=None, help="rays per blob (default 16; 4 quick; half on "
                                                                      "the 2,000-ball blobs)")
     ap.add_argument("--seed", type=int, default=2)
-    ap.add_argument("--quick", action="store_true", help="smaller scenes and fewer rays, for the test")
-    args = ap.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     rays = args.rays_per_blob or (4 if quick else 16)
     sizes = QUICK_SIZES if quick else SIZES
     rng = np.random.default_rng(args.seed)
@@ -262,8 +249,7 @@ def main(argv=None, quick=False):
           f"{rays} rays per scene ({max(4, rays // 2)} on scenes of 1,000+)\n")
     head = (f"{'kernel':10s} {'density':8s} {'shape':10s} {'rays':>5s} {'hit':>4s} {'max rel':>9s} {'median rel':>10s} "
             f"{'max|tau| (0)':>12s} {'balls/ray':>9s}  result")
-    print(head)
-    print("-" * len(head))
+    print_head(head)
     for case, s in per_case.items():
         if s["status"] != "checked":
             print(f"{case[0]:10s} {case[1]:8s} {case[2]:10s} {'-':>5s} {'-':>4s} {'-':>9s} {'-':>10s} {'-':>12s} "
@@ -288,19 +274,11 @@ def main(argv=None, quick=False):
           f"{REL_LIMIT:g}) over {overall['hit']} rays; max |tau| on {overall['zero']} zero-reference rays "
           f"{overall['max_zero_abs']:.1e} (limit {ZERO_ABS_LIMIT:g})   [{elapsed:.1f} s]")
     if not quick:
-        RESULTS.mkdir(exist_ok=True)
         keys = ["rays", "hit", "zero", "max_rel", "median_rel", "max_zero_abs", "max_balls_on_ray", "passed", "status"]
-        with open(RESULTS / "optical_depth.csv", "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["kernel", "density", "shape"] + keys)
-            for case, s in per_case.items():
-                w.writerow(list(case) + [s[k] for k in keys])
-            w.writerow(["all", "", ""] + [overall.get(k, "") for k in keys])
-        with open(RESULTS / "optical_depth_sizes.csv", "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["n_balls"] + keys[:-1])
-            for n, s in by_size.items():
-                w.writerow([n] + [s[k] for k in keys[:-1]])
+        write_csv("optical_depth.csv", [list(case) + [s[k] for k in keys] for case, s in per_case.items()]
+                  + [["all", "", ""] + [overall.get(k, "") for k in keys]], ["kernel", "density", "shape"] + keys)
+        write_csv("optical_depth_sizes.csv", [[n] + [s[k] for k in keys[:-1]] for n, s in by_size.items()],
+                  ["n_balls"] + keys[:-1])
         plot(rows, per_case, RESULTS / "optical_depth.png")
         print(f"wrote {RESULTS / 'optical_depth.csv'}, optical_depth_sizes.csv and optical_depth.png")
     return dict(passed=overall["passed"], max_rel_err=overall["max_rel"], median_rel_err=overall["median_rel"],
@@ -308,4 +286,4 @@ def main(argv=None, quick=False):
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

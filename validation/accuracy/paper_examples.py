@@ -4,37 +4,25 @@ Every row is an expected value (from the paper, or from a formula of MODEL.md) a
 kernels give. The expected values are derived here independently: control values by interpolating the
 kernel k(u(s)) itself at Bernstein nodes, roots by brentq on the plain field.
 
-    python -m validation.paper_examples            # from the repository root
-    python validation/paper_examples.py
+    python -m validation.accuracy.paper_examples    # from the repository root
 
 Writes validation/results/paper_examples.csv.
 """
 from __future__ import annotations
 
-import argparse
-import csv
-import os
-import sys
 from math import comb
-from pathlib import Path
 
-if __name__ == "__main__":
-    # numba's cache does not notice when a kernel's callee in another file changes (clip_roots keeps a stale
-    # copy of bernstein.subdivide): a validation run compiles the engine fresh unless told otherwise
-    os.environ.setdefault("CLOUDMETA_NO_CACHE", "1")
-if __package__ in (None, ""):  # run as a file: make `cloudmeta` importable from the repository root
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from validation.common import cache_note, fresh_kernels_when_run, parse, parser, print_head, run_main, write_csv
+
+fresh_kernels_when_run(__name__)  # before cloudmeta is imported
 
 import numpy as np
 from scipy.optimize import brentq
 
 import cloudmeta as cm
-from cloudmeta import config
 from cloudmeta.kernels.bernstein import elevate, subdivide
 from cloudmeta.kernels.clipping import STACK_DEPTH, clip_roots
 from cloudmeta.kernels.metaball import MURAKAMI4, WYVILL6, control_values
-
-RESULTS = Path(__file__).resolve().parent / "results"
 
 
 # --- independent helpers (plain numpy, from the formulas of MODEL.md) -------------------------------------
@@ -250,27 +238,15 @@ def half_radius(ch, out):
 def print_table(rows, file=None):
     w = max(len(r["check"]) for r in rows)
     head = f"{'check':<{w}}  {'expected':>20}  {'got':>20}  {'|diff|':>9}  {'tol':>7}  ok"
-    print(head, file=file)
-    print("-" * len(head), file=file)
+    print_head(head, file)
     for r in rows:
         print(f"{r['check']:<{w}}  {r['expected']:>20.15g}  {r['got']:>20.15g}  {r['diff']:>9.2e}  "
               f"{r['tol']:>7.0e}  {'ok' if r['ok'] else 'FAIL'}", file=file)
 
 
-def cache_note():
-    if config.CACHE:
-        return "engine kernels: loaded from numba's cache (stale after some edits; CLOUDMETA_NO_CACHE=1 compiles fresh)"
-    return "engine kernels: compiled fresh for this run (CLOUDMETA_NO_CACHE=1)"
-
-
 def main(argv=None, quick=False):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="same checks (they are all fast)")
-    parser.add_argument("--no-csv", action="store_true",
-                        help="do not write validation/results/*.csv (quick runs never do)")
-    args = parser.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
-    write_csv = not (args.no_csv or quick)  # quick runs (tests) leave the full run's results alone
+    args, quick = parse(parser(__doc__, quick="same checks (they are all fast)", no_csv=True), argv, quick)
+    write = not (args.no_csv or quick)  # quick runs (tests) leave the full run's results alone
     ch = Checks()
     out = {}
     wyvill6_control_values(ch)
@@ -289,17 +265,12 @@ def main(argv=None, quick=False):
           f"t = {4 + out['fig5_s_clip']:.10f}; cm.roots on the Blob: {out['fig5_blob_roots']}")
     n_fail = sum(not r["ok"] for r in ch.rows)
     print(f"\n{len(ch.rows)} checks, {n_fail} failed: {'PASS' if n_fail == 0 else 'FAIL'}")
-    if write_csv:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "paper_examples.csv", "w", newline="") as f:
-            wr = csv.DictWriter(f, fieldnames=["check", "expected", "got", "diff", "tol", "ok"])
-            wr.writeheader()
-            for r in ch.rows:
-                wr.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
+    if write:
+        write_csv("paper_examples.csv", ch.rows, ["check", "expected", "got", "diff", "tol", "ok"])
     return dict(rows=ch.rows, n_checks=len(ch.rows), n_failed=n_fail, passed=n_fail == 0,
                 fig5_root_s=float(out["fig5_s_clip"]), fig5_root_t=float(4 + out["fig5_s_clip"]),
                 fig5_blob_roots=out["fig5_blob_roots"], fig5_A=out["fig5_A"], fig5_B=out["fig5_B"])
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

@@ -2,12 +2,12 @@
 
 Renders every suite scene (64 x 48, spp 1) at draft, default and fine with exact shadow rays, and at
 default and draft with ``shadows: map`` (384 texels, the renderer's default), and measures against the
-scene's converged reference (validation/suite_references.py's cache, ``quality: reference``; run that
+scene's converged reference (validation/accuracy/suite_references.py's cache, ``quality: reference``; run that
 script first, or this one computes the missing references itself):
 
     rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / sqrt(mean over pixels and RGB of L_ref^2)
 
-over the whole image (validation/render_quality.py's ``rel_rmse``); the same relative to the scattered light
+over the whole image (validation/common.py's ``rel_rmse``); the same relative to the scattered light
 only, sqrt(mean (L - L_ref)^2) / sqrt(mean S_ref^2) with S_ref = L_ref - L_bg T_ref (a bright sky covering
 much of the frame makes the first measure up to 17x smaller on this suite); and the worst pixel's relative error,
 max over pixels of max_c |L - L_ref| / max_c L_ref. Each setting is checked against its issue #11 target:
@@ -17,7 +17,7 @@ reference's own error (against the tighter setting): a figure is meaningful only
 Time: wall seconds per render, the median of ``--repeat`` renders (3) after a warm-up, on the machine that
 runs it (the project's: 2 cores, shared, so expect noise; compare times within one run only).
 
-    python -m validation.suite_accuracy [--scenes NAME ...] [--repeat 3]
+    python -m validation.accuracy.suite_accuracy [--scenes NAME ...] [--repeat 3] [--replot]
 
 Writes validation/results/suite_accuracy.csv and suite_accuracy.png (time against error: one curve per
 setting over the whole suite, and one per scene across the presets). Exit status 0 only if every setting
@@ -25,22 +25,15 @@ meets its target on every scene (it is a measurement of a promise the presets do
 """
 from __future__ import annotations
 
-import argparse
-import csv
-import sys
 import time
-from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
 import cloudmeta as cm
-from validation import _suite as S
-from validation import suite_references
+from validation.accuracy import suite_references
+from validation.common import RESULTS, parse, parser, pyplot, read_csv, run_main, save_figure, write_results
+from validation.references import suite as S
 
-RESULTS = Path(__file__).resolve().parent / "results"
 #: label -> (render settings, the target it is held to)
 SETTINGS = {
     "draft": (dict(quality="draft"), S.TARGETS["draft"]),
@@ -62,11 +55,7 @@ def timed(scene, repeat):
 
 def run_scene(path, repeat):
     name = path.stem
-    entry = S.cached(name)
-    if entry is None or entry[2].get("fingerprint") != S.fingerprint(path):
-        suite_references.build(path, crosscheck=False)
-        entry = S.cached(name)
-    ref, _, meta = entry
+    ref, _, meta = suite_references.current(path)
     scene = cm.load_scene(path)
     small = cm.load_scene(path, width=8, height=6)
     for settings, _ in SETTINGS.values():  # warm-up: compile or load every code path outside the timings
@@ -121,9 +110,7 @@ def worst_table(rows):
 
 
 def plot(rows, out):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     labels = list(dict.fromkeys(r["setting"] for r in rows))
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.2), sharey=True)
@@ -158,33 +145,24 @@ def plot(rows, out):
     ax1.legend(fontsize=7, loc="lower left")
     ax2.legend(fontsize=6, loc="lower left", ncol=2)
     fig.suptitle("cloudmeta accuracy suite (scenes/suite/): time against true error of the presets", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
+    save_figure(fig, out)
 
 
-def read_csv(path):
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    for r in rows:
-        for k in ("seconds", "seconds_min", "seconds_max", "rel_rmse", "rel_rmse_scattered", "worst_pixel", "target",
-                  "floor", "reference_s"):
-            r[k] = float(r[k])
-        for k in ("worst_row", "worst_col"):
-            r[k] = int(r[k])
-        for k in ("meets", "meets_scattered", "finite"):
-            r[k] = r[k] == "True"
-    return rows
+def read_rows(path=RESULTS / "suite_accuracy.csv"):
+    """Rows of a suite_accuracy.csv, typed (to redraw the plot without rendering again)."""
+    return read_csv(path, floats=("seconds", "seconds_min", "seconds_max", "rel_rmse", "rel_rmse_scattered",
+                                  "worst_pixel", "target", "floor", "reference_s"),
+                    ints=("worst_row", "worst_col"), bools=("meets", "meets_scattered", "finite"))
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("--scenes", nargs="+", default=None, help="scene names (default: the whole suite)")
     ap.add_argument("--repeat", type=int, default=3, help="renders per setting; the median time is quoted")
     ap.add_argument("--replot", action="store_true", help="redraw the plot from the CSV, render nothing")
-    args = ap.parse_args([] if argv is None else argv)
+    args, _ = parse(ap, argv)
     if args.replot:
-        rows = read_csv(RESULTS / "suite_accuracy.csv")
+        rows = read_rows()
         plot(rows, RESULTS / "suite_accuracy.png")
         print(table(rows))
         return dict(rows=rows, passed=all(r["meets"] for r in rows))
@@ -209,15 +187,9 @@ def main(argv=None, quick=False):
     print(f"\nfloor: the reference's own error (rel. RMSE against the tighter setting).\n"
           f"{'PASS' if passed else 'FAIL'}: every setting at or below its target on every scene; every image "
           f"finite ({'yes' if all(r['finite'] for r in rows) else 'NO'})   [{elapsed:.1f} s]")
-    RESULTS.mkdir(exist_ok=True)
-    with open(RESULTS / "suite_accuracy.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    plot(rows, RESULTS / "suite_accuracy.png")
-    print(f"wrote {RESULTS / 'suite_accuracy.csv'} and {RESULTS / 'suite_accuracy.png'}")
+    write_results("suite_accuracy", rows, plot)
     return dict(rows=rows, passed=passed, seconds=elapsed)
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

@@ -8,24 +8,21 @@ Renders one scene (default: the cumulus at 4 x 3, as the CLI does) in this proce
   and the time numba spent saving it to the cache;
 - per jitted function loaded from numba's cache: the load time (``Cache.load_overload``).
 
-    python -m validation.compile_profile                 # with the usual cache (warm after a first run)
-    python -m validation.compile_profile --cold          # an empty cache folder: everything compiles
-    python -m validation.compile_profile --scene scenes/hand.yaml --width 8 --height 6
+    python -m validation.performance.compile_profile            # the usual cache (warm after a first run)
+    python -m validation.performance.compile_profile --cold     # an empty cache folder: everything compiles
+    python -m validation.performance.compile_profile --scene scenes/hand.yaml --width 8 --height 6
 
 Run it in a fresh process each time (it patches numba's cache class before cloudmeta is imported).
 """
 from __future__ import annotations
 
-import argparse
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-if __package__ in (None, ""):
-    sys.path.insert(0, str(ROOT))  # run as a file: this checkout's cloudmeta, not an installed one
+from validation.common import ROOT, parse, parser, run_main
+
 CUMULUS = ROOT / "scenes" / "cumulus.yaml"
 
 
@@ -86,14 +83,14 @@ def install_probes():
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("--scene", default=str(CUMULUS))
     ap.add_argument("--width", type=int, default=4)
     ap.add_argument("--height", type=int, default=3)
     ap.add_argument("--cold", action="store_true", help="compile everything into an empty cache folder")
     ap.add_argument("--cache-dir", help="use this CLOUDMETA_CACHE_DIR (with --cold: keep the new cache there)")
     ap.add_argument("--top", type=int, default=25, help="rows of the per-function tables")
-    args = ap.parse_args(argv)
+    args, _ = parse(ap, argv)
     tmp = None
     if args.cold and not args.cache_dir:
         tmp = tempfile.TemporaryDirectory(prefix="cloudmeta-cold-")
@@ -163,4 +160,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    run_main(main)

@@ -8,7 +8,7 @@ any output is not finite, or if its error exceeds the criterion of its category.
   in t, its real roots come from mpmath.polyroots, and the inside length and the optical depth are exact
   integrals. For a single sphere the inside length is closed-form: 2 sqrt(r_iso^2 - p^2), with p the
   distance of the (float) ray from the (float) centre computed in mpmath and r_iso = R sqrt(u_T), k(u_T) = T.
-- ``plain``: validation/_plain.py (numpy power form, companion-matrix roots; ~1e-13 relative), used where
+- ``plain``: validation/references/plain.py (numpy power form, companion-matrix roots; ~1e-13 relative), used where
   an mpmath reference would be too slow (many balls).
 
 Criteria (MODEL.md §3 and docs/model_notes.md), with tol_t the engine's root tolerance (1e-9 x the blob's
@@ -33,37 +33,30 @@ sigma = scale x max(T, 1) the density at a crossing (an upper bound: field mode 
   size moves roots and nodes by that much; 1e-6 also covers the float32 image); the camera inside the
   cloud at the default quality against the reference quality: <= 1e-3 (the default's promise).
 
-    python -m validation.stability [--quick] [--seed 5]
+    python -m validation.accuracy.stability [--quick] [--seed 5]
 
 Writes validation/results/stability.csv (per category), stability_cases.csv (every case) and
 stability.png (worst error / tolerance per category).
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import inspect
 import math
-import sys
 import tempfile
 import textwrap
 import time
 import traceback
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 import mpmath as mp
 import numpy as np
 
 import cloudmeta as cm
 from cloudmeta.kernels.sweep import NOISE
-from validation import _plain as P
-from validation.render_quality import rel_rmse, with_quality
+from validation.common import (RESULTS, ROOT, parse, parser, print_head, pyplot, rel_rmse, run_main, save_figure,
+                               with_settings, write_csv)
+from validation.references import plain as P
 
-ROOT = Path(__file__).resolve().parent.parent
-RESULTS = Path(__file__).resolve().parent / "results"
 EPS = np.finfo(float).eps
 DPS = 50
 ROUND_F = 8 * NOISE  # the engine's touch level, 64 eps (T + sum |c|), is at most 8 x 64 eps x sum|q k| here
@@ -256,6 +249,21 @@ class Cases:
                               ratio=float("inf"), status="CRASH", reference="-",
                               note=f"{type(exc).__name__}: {exc}".replace("\n", " ")[:300]))
 
+    def length(self, cat, label, blob, o, d, exact, bound):
+        """One ray's inside length against ``exact()`` (the reference, computed only when the engine did not
+        raise): a case within ``bound``."""
+        try:
+            segs = cm.segments(blob, o[None], d[None])[0]
+        except Exception as exc:  # noqa: BLE001 - a crash is a result here
+            self.crash(cat, label, exc)
+            return
+        length = exact()
+        if not np.all(np.isfinite(segs)):
+            self.add(cat, label, float("inf"), bound, status="nonfinite")
+            return
+        self.add(cat, label, abs(seg_length(segs) - length), bound,
+                 note=f"exact length {length:.3e}, engine {seg_length(segs):.3e}")
+
     def compare(self, cat, label, blob, o, d, mode="field", scale=1.0, tolerance=1e-9, extra=0.0, ref="exact",
                 t_max=None):
         """Engine against the reference on rays o, d (N, 3): one case per ray (tau and inside length)."""
@@ -307,18 +315,8 @@ def tangent_single(cs, rng, quick):
                 d = random_unit(rng)
                 e1 = random_unit(rng, perp_to=d)
                 o = c + r_iso * (1 - e) * e1 - 3 * R * d
-                label = f"{kernel} e={e:g}"
-                try:
-                    segs = cm.segments(blob, o[None], d[None])[0]
-                except Exception as exc:  # noqa: BLE001
-                    cs.crash(cat, label, exc)
-                    continue
-                exact, _ = sphere_exact_length(c, R, q, T, kernel, o, d)
-                if not np.all(np.isfinite(segs)):
-                    cs.add(cat, label, float("inf"), bound, status="nonfinite")
-                    continue
-                cs.add(cat, label, abs(seg_length(segs) - exact), bound,
-                       note=f"exact length {exact:.3e}, engine {seg_length(segs):.3e}")
+                cs.length(cat, f"{kernel} e={e:g}", blob, o, d,
+                          lambda: sphere_exact_length(c, R, q, T, kernel, o, d)[0], bound)
 
 
 def _field_terms(blob, x):
@@ -380,15 +378,7 @@ def tangent_composite(cs, rng, quick):
             bound = tol_t + 2 * math.sqrt(2 * ROUND_F * S / f2)
             for e in es:
                 o = x0 + e * nrm - 4.0 * d
-                label = f"blob {b} e={e:g}"
-                try:
-                    segs = cm.segments(blob, o[None], d[None])[0]
-                except Exception as exc:  # noqa: BLE001
-                    cs.crash(cat, label, exc)
-                    continue
-                exact, _, _ = exact_ray(blob, o, d)
-                cs.add(cat, label, abs(seg_length(segs) - exact), bound,
-                       note=f"exact length {exact:.3e}, engine {seg_length(segs):.3e}")
+                cs.length(cat, f"blob {b} e={e:g}", blob, o, d, lambda: exact_ray(blob, o, d)[0], bound)
 
 
 def near_max_threshold(cs, rng, quick):
@@ -409,15 +399,8 @@ def near_max_threshold(cs, rng, quick):
             if k % 2:  # off-centre, half the inside radius
                 _, r_t = sphere_exact_length(c, R, q, T, "wyvill6", o, d)
                 o = o + 0.5 * r_t * random_unit(rng, perp_to=d)
-            label = f"delta={delta:g}"
-            try:
-                segs = cm.segments(blob, o[None], d[None])[0]
-            except Exception as exc:  # noqa: BLE001
-                cs.crash(cat, label, exc)
-                continue
-            exact, _ = sphere_exact_length(c, R, q, T, "wyvill6", o, d)
-            cs.add(cat, label, abs(seg_length(segs) - exact), bound,
-                   note=f"exact length {exact:.3e}, engine {seg_length(segs):.3e}")
+            cs.length(cat, f"delta={delta:g}", blob, o, d,
+                      lambda: sphere_exact_length(c, R, q, T, "wyvill6", o, d)[0], bound)
 
 
 def grazing_support(cs, rng, quick):
@@ -656,9 +639,9 @@ def renders(cs, quick):
         assert "far.csv" in text and str(shift[0]) in text
         (tmp / "far.yaml").write_text(text)
         try:
-            near = cm.render(with_quality(cm.load_scene(cum, width=size, height=size), quality="reference"),
+            near = cm.render(with_settings(cm.load_scene(cum, width=size, height=size), quality="reference"),
                              progress=False)
-            far = cm.render(with_quality(cm.load_scene(tmp / "far.yaml", width=size, height=size),
+            far = cm.render(with_settings(cm.load_scene(tmp / "far.yaml", width=size, height=size),
                                          quality="reference"), progress=False)
             ok = bool(np.all(np.isfinite(far)))
             cs.add(cat, "cumulus 1e6 from the origin vs at the origin (reference quality)",
@@ -672,8 +655,8 @@ def renders(cs, quick):
         (tmp / "inside.yaml").write_text(inside)
         try:
             s = cm.load_scene(tmp / "inside.yaml", width=size, height=size)
-            ref = cm.render(with_quality(s, quality="reference"), progress=False)
-            img = cm.render(with_quality(s, quality="default"), progress=False)
+            ref = cm.render(with_settings(s, quality="reference"), progress=False)
+            img = cm.render(with_settings(s, quality="default"), progress=False)
             ok = bool(np.all(np.isfinite(img)) and np.all(np.isfinite(ref)))
             ok_alpha = bool(np.all((img[..., 3] >= 0) & (img[..., 3] <= 1)))
             cs.add(cat, "camera inside the cumulus: default vs reference",
@@ -726,9 +709,7 @@ def summarise(rows):
 
 
 def plot(summary, out):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     names = list(summary)
     ratios = [min(max(summary[n]["worst_ratio"], 1e-12), 1e6) for n in names]
     colours = ["C3" if summary[n]["failures"] else "C0" for n in names]
@@ -741,18 +722,14 @@ def plot(summary, out):
     ax.invert_yaxis()
     ax.set_xlabel("worst error / its tolerance (dashed: the criterion)")
     ax.set_title("cloudmeta: adversarial cases (red: categories with failures)")
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
+    save_figure(fig, out)
 
 
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="fewer rays per category, 20,000 instead of 100,000 balls")
+    ap = parser(__doc__, quick="fewer rays per category, 20,000 instead of 100,000 balls")
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--no-renders", action="store_true")
-    args = ap.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
+    args, quick = parse(ap, argv, quick)
     rng = np.random.default_rng(args.seed)
     cs = Cases()
     start = time.perf_counter()
@@ -771,10 +748,9 @@ def main(argv=None, quick=False):
         timings["renders"] = time.perf_counter() - t0
     elapsed = time.perf_counter() - start
     summary = summarise(cs.rows)
-    print("Stability: adversarial cases (criteria in the docstring: python -m validation.stability --help)\n")
+    print("Stability: adversarial cases (criteria in the docstring: python -m validation.accuracy.stability --help)\n")
     head = f"{'category':38s} {'cases':>5s} {'fail':>5s} {'worst err/tol':>13s} {'worst error':>11s}  worst case"
-    print(head)
-    print("-" * len(head))
+    print_head(head)
     for name, s in summary.items():
         print(f"{name:38s} {s['cases']:5d} {s['failures']:5d} {s['worst_ratio']:13.2e} {s['worst_error']:11.2e}  "
               f"{s['worst_case']}")
@@ -792,16 +768,8 @@ def main(argv=None, quick=False):
     print(f"\n{'PASS' if passed else 'FAIL'}: {total['cases']} cases, {total['failures']} failures, worst error "
           f"{worst['worst_ratio']:.2e} x its tolerance   [{elapsed:.1f} s]")
     if not quick:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "stability.csv", "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["category", "cases", "failures", "worst_ratio", "worst_error", "worst_case"])
-            for name, s in summary.items():
-                w.writerow([name, s["cases"], s["failures"], s["worst_ratio"], s["worst_error"], s["worst_case"]])
-        with open(RESULTS / "stability_cases.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(cs.rows[0]))
-            w.writeheader()
-            w.writerows(cs.rows)
+        write_csv("stability.csv", [dict(category=name, **s) for name, s in summary.items()])
+        write_csv("stability_cases.csv", cs.rows)
         plot(summary, RESULTS / "stability.png")
         print(f"wrote {RESULTS / 'stability.csv'}, stability_cases.csv and stability.png")
     return dict(passed=passed, cases=total["cases"], failures=total["failures"], worst_ratio=worst["worst_ratio"],
@@ -809,4 +777,4 @@ def main(argv=None, quick=False):
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

@@ -9,7 +9,7 @@ every root reported by cm.roots, and every root found here independently (power-
 each chord interval, refined by brentq on the plain field), so that the integrand is a smooth polynomial
 on every piece.
 
-    python -m validation.optical_depth_vs_quadrature [--rays 3000] [--seed 1] [--quick]
+    python -m validation.accuracy.optical_depth_vs_quadrature [--rays 3000] [--seed 1] [--quick]
 
 Requirement (the issue): max relative error below 1e-9 on every ray; rays whose reference is 0 must give
 tau = 0 to 1e-12 absolute. Writes validation/results/optical_depth_vs_quadrature.csv (per case) and, with
@@ -17,21 +17,13 @@ tau = 0 to 1e-12 absolute. Writes validation/results/optical_depth_vs_quadrature
 """
 from __future__ import annotations
 
-import argparse
-import csv
-import os
 import itertools
-import sys
 import time
 import warnings
-from pathlib import Path
 
-if __name__ == "__main__":
-    # numba's cache does not notice when a kernel's callee in another file changes (clip_roots keeps a stale
-    # copy of bernstein.subdivide): a validation run compiles the engine fresh unless told otherwise
-    os.environ.setdefault("CLOUDMETA_NO_CACHE", "1")
-if __package__ in (None, ""):  # run as a file: make `cloudmeta` importable from the repository root
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from validation.common import cache_note, fresh_kernels_when_run, parse, parser, print_head, run_main, write_csv
+
+fresh_kernels_when_run(__name__)  # before cloudmeta is imported
 
 import numpy as np
 from numpy.polynomial import Polynomial
@@ -40,9 +32,7 @@ from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
 import cloudmeta as cm
-from cloudmeta import config
 
-RESULTS = Path(__file__).resolve().parent / "results"
 REL_LIMIT = 1e-9      # the issue's requirement on every ray
 ZERO_ABS_LIMIT = 1e-12  # rays whose reference is 0
 TINY = 1e-300
@@ -258,8 +248,7 @@ def print_table(per_case, overall, file=None):
     head = (f"{'kernel':<10} {'shape':<10} {'weights':<8} {'density':<8} {'rays':>5} {'hit':>5} {'max rel':>9} "
             f"{'median rel':>10} {'zero-ref':>8} {'max abs(0)':>10} {'roots #!=':>9} {'max dt root':>11} "
             f"{'quadW':>5}  result")
-    print(head, file=file)
-    print("-" * len(head), file=file)
+    print_head(head, file)
     for case, s in list(per_case.items()) + [(("overall", "", "", ""), overall)]:
         print(f"{case[0]:<10} {case[1]:<10} {case[2]:<8} {case[3]:<8} {s['rays']:>5} {s['hit']:>5} "
               f"{s['max_rel']:>9.2e} {s['median_rel']:>10.2e} {s['zero']:>8} {s['max_zero_abs']:>10.1e} "
@@ -267,24 +256,14 @@ def print_table(per_case, overall, file=None):
               f"{'PASS' if s['passed'] else 'FAIL'}", file=file)
 
 
-def cache_note():
-    if config.CACHE:
-        return "engine kernels: loaded from numba's cache (stale after some edits; CLOUDMETA_NO_CACHE=1 compiles fresh)"
-    return "engine kernels: compiled fresh for this run (CLOUDMETA_NO_CACHE=1)"
-
-
 def main(argv=None, quick=False):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rays", type=int, default=None, help="rays in total (default 3000; 200 with --quick)")
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--quick", action="store_true", help="about 200 rays")
-    parser.add_argument("--no-csv", action="store_true",
-                        help="do not write validation/results/*.csv (quick runs never do)")
-    parser.add_argument("--per-ray-csv", action="store_true",
-                        help="also write every ray (origin, direction, tau, reference) to *_rays.csv (large)")
-    args = parser.parse_args([] if argv is None else argv)
-    quick = quick or args.quick
-    write_csv = not (args.no_csv or quick)  # quick runs (tests) leave the full run's results alone
+    ap = parser(__doc__, quick="about 200 rays", no_csv=True)
+    ap.add_argument("--rays", type=int, default=None, help="rays in total (default 3000; 200 with --quick)")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--per-ray-csv", action="store_true",
+                    help="also write every ray (origin, direction, tau, reference) to *_rays.csv (large)")
+    args, quick = parse(ap, argv, quick)
+    write = not (args.no_csv or quick)  # quick runs (tests) leave the full run's results alone
     total = args.rays if args.rays is not None else (200 if quick else 3000)
     cases = list(itertools.product(KERNELS, SHAPES, WEIGHTS, DENSITIES))
     per = [total // len(cases) + (1 if k < total % len(cases) else 0) for k in range(len(cases))]
@@ -316,20 +295,14 @@ def main(argv=None, quick=False):
           f"(limit {REL_LIMIT:g}) over {overall['hit']} rays; max |tau| on {overall['zero']} zero-reference "
           f"rays {overall['max_zero_abs']:.1e} (limit {ZERO_ABS_LIMIT:g})   [{elapsed:.1f} s]")
 
-    if write_csv:
-        RESULTS.mkdir(exist_ok=True)
-        with open(RESULTS / "optical_depth_vs_quadrature.csv", "w", newline="") as f:
-            wr = csv.writer(f)
-            keys = list(overall)
-            wr.writerow(["kernel", "shape", "weights", "density"] + keys)
-            for case, s in list(per_case.items()) + [(("overall", "", "", ""), overall)]:
-                wr.writerow(list(case) + [s[k] for k in keys])
-    if args.per_ray_csv and write_csv:
-        with open(RESULTS / "optical_depth_vs_quadrature_rays.csv", "w", newline="") as f:
-            wr = csv.DictWriter(f, fieldnames=list(rows[0]))
-            wr.writeheader()
-            for r in rows:
-                wr.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
+    if write:
+        keys = list(overall)
+        write_csv("optical_depth_vs_quadrature.csv",
+                  [list(case) + [s[k] for k in keys]
+                   for case, s in list(per_case.items()) + [(("overall", "", "", ""), overall)]],
+                  ["kernel", "shape", "weights", "density"] + keys)
+    if args.per_ray_csv and write:
+        write_csv("optical_depth_vs_quadrature_rays.csv", rows)
     return dict(rays=overall["rays"], max_rel_err=overall["max_rel"], median_rel_err=overall["median_rel"],
                 max_zero_abs_err=overall["max_zero_abs"], zero_ref_rays=overall["zero"],
                 root_count_mismatch=overall["root_count_mismatch"], max_root_diff=overall["max_root_diff"],
@@ -337,4 +310,4 @@ def main(argv=None, quick=False):
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

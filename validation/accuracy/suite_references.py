@@ -5,9 +5,9 @@ For every suite scene (64 x 48, spp 1):
 1. the reference: ``cm.render`` at ``quality: reference`` (tolerance 1e-6, max_tau 0.1, max_length 1/128 of
    the diagonal, max_angle 0.025, cutoff 0);
 2. a tighter setting still (tolerance 1e-8, max_tau 0.05, max_length 1/256, max_angle 0.0125, cutoff 0),
-   to show that the reference has converged: "ref vs tighter" is their relative RMSE (validation/_suite.py
+   to show that the reference has converged: "ref vs tighter" is their relative RMSE (validation/common.py
    defines it: over the RGB of the whole image) and the worst pixel's relative difference;
-3. a cross-check of the reference against validation/single_scattering.py's independent numpy reference
+3. a cross-check of the reference against validation/accuracy/single_scattering.py's independent numpy reference
    (plain model, exact view and shadow optical depths, adaptive Gauss-Kronrod 7/15 at rtol ``--rtol``) on
    a 16 x 12 grid of the image's own pixels (every 4th row and column from 2): their relative RMSE over
    those pixels and RGB, and the worst pixel. That reference reads the YAML's geometry itself and supports
@@ -21,7 +21,7 @@ and the settings) and NAME.numpy.npy (the numpy reference's pixels, (n, 3) float
 NAME.pixels.npy). A cached scene whose fingerprint still matches is not rendered again; ``--force`` redoes it.
 The whole cache is about 1.5 MB and is committed, so that tests and later sessions reuse it.
 
-    python -m validation.suite_references [--scenes NAME ...] [--force] [--rtol 1e-8] [--no-crosscheck]
+    python -m validation.accuracy.suite_references [--scenes NAME ...] [--force] [--rtol 1e-8] [--no-crosscheck]
 
 Requirement: every reference within 1e-5 of the tighter image (relative RMSE) and within 1e-5 of the numpy
 reference on the cross-checked pixels (the bounds are 30x below the tightest preset target, fine's 3e-4).
@@ -29,25 +29,19 @@ Writes validation/results/suite_references.csv.
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import json
 import os
-import sys
 import time
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 import yaml
 
 import cloudmeta as cm
-from validation import _suite as S
-from validation import single_scattering as SS
+from validation.accuracy import single_scattering as SS
+from validation.common import RESULTS, parse, parser, print_head, rel_rmse, run_main, write_csv
+from validation.references import suite as S
 
-RESULTS = Path(__file__).resolve().parent / "results"
 CONVERGED = 1e-5
 AGREE = 1e-5
 
@@ -59,7 +53,7 @@ def grid_pixels(height, width, stride=S.STRIDE, offset=None):
 
 
 def numpy_reference(path, pixels, rtol):
-    """(radiance (n, 3), transmittance (n,), seconds, evaluations) of validation/single_scattering.py's
+    """(radiance (n, 3), transmittance (n,), seconds, evaluations) of validation/accuracy/single_scattering.py's
     independent reference at the given pixels of the scene's own image size."""
     path = Path(path)
     raw = yaml.safe_load(path.read_text(encoding="utf-8"))
@@ -79,7 +73,7 @@ def tighter_vs_numpy(name):
     pixels = np.load(S.CACHE / f"{name}.pixels.npy")
     rad = np.load(S.CACHE / f"{name}.numpy.npy")
     got = np.load(S.CACHE / f"{name}.tighter.npy").astype(np.float64)[pixels[:, 0], pixels[:, 1], :3]
-    return float(np.sqrt(np.mean((got - rad) ** 2)) / np.sqrt(np.mean(rad ** 2)))
+    return rel_rmse(got, rad)
 
 
 def _save(path, array):
@@ -122,7 +116,7 @@ def build(path, force=False, crosscheck=True, rtol=1e-8, stride=None):
         pix_rel = np.abs(got[:, :3] - rad).max(axis=1) / np.maximum(rad.max(axis=1), 1e-300)
         meta.update(numpy_rtol=rtol, numpy_stride=stride, numpy_pixels=len(pixels), numpy_s=secs,
                     numpy_evals=int(n_eval),
-                    numpy_rel_rmse=float(np.sqrt(np.mean((got[:, :3] - rad) ** 2)) / np.sqrt(np.mean(rad ** 2))),
+                    numpy_rel_rmse=rel_rmse(got, rad),
                     numpy_worst_pixel=float(pix_rel.max()),
                     numpy_alpha_max_abs=float(np.abs(got[:, 3] - (1.0 - trans)).max()))
         _save(S.CACHE / f"{name}.numpy.npy", rad)
@@ -133,15 +127,25 @@ def build(path, force=False, crosscheck=True, rtol=1e-8, stride=None):
     return meta
 
 
+def current(path):
+    """(reference, tighter, metadata) of a suite scene from the cache, rendered first (without the numpy
+    cross-check) where it is missing or stale."""
+    entry = S.cached(Path(path).stem)
+    if entry is None or entry[2].get("fingerprint") != S.fingerprint(path):
+        build(path, crosscheck=False)
+        entry = S.cached(Path(path).stem)
+    return entry
+
+
 def main(argv=None, quick=False):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("--scenes", nargs="+", default=None, help="scene names (default: the whole suite)")
     ap.add_argument("--force", action="store_true", help="render again even where the cache is current")
     ap.add_argument("--rtol", type=float, default=1e-8, help="tolerance of the numpy reference (default 1e-8)")
     ap.add_argument("--stride", type=int, default=None,
                     help="cross-check every STRIDE-th row and column (default: as cached, or 4: 16 x 12 of 64 x 48)")
     ap.add_argument("--no-crosscheck", action="store_true", help="skip the numpy cross-check")
-    args = ap.parse_args([] if argv is None else argv)
+    args, _ = parse(ap, argv)
     paths = [p for p in S.scene_paths() if args.scenes is None or p.stem in args.scenes]
     start = time.perf_counter()
     cm.render(cm.load_scene(paths[0], width=4, height=3), progress=False)  # compile (or load the cache) first
@@ -155,8 +159,7 @@ def main(argv=None, quick=False):
     head = (f"{'scene':22s} {'size':>6s} {'ref s':>6s} {'tight s':>7s} {'vs tighter':>10s} {'worst px':>9s} "
             f"{'numpy px':>8s} {'vs numpy':>9s} {'worst px':>9s} {'alpha':>8s} {'numpy s':>7s} {'tight/np':>8s}"
             "  result")
-    print(head)
-    print("-" * len(head))
+    print_head(head)
     passed = True
     for m in rows:
         m["tighter_vs_numpy"] = tighter_vs_numpy(m["scene"]) if "numpy_rel_rmse" in m else float("nan")
@@ -178,15 +181,10 @@ def main(argv=None, quick=False):
           "tighter image against the numpy reference on the same pixels.")
     print(f"{'PASS' if passed else 'FAIL'}: every reference within {CONVERGED:g} of the tighter image and within "
           f"{AGREE:g} of the numpy reference   [{elapsed:.1f} s]")
-    RESULTS.mkdir(exist_ok=True)
-    keys = sorted({k for m in rows for k in m})
-    with open(RESULTS / "suite_references.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
+    write_csv("suite_references.csv", rows, fieldnames=sorted({k for m in rows for k in m}))
     print(f"wrote {RESULTS / 'suite_references.csv'} and the cache in {S.CACHE}")
     return dict(rows=rows, passed=passed, seconds=elapsed)
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main(sys.argv[1:])["passed"] else 1)
+    run_main(main)

@@ -1,0 +1,1 @@
+"""Accuracy: the engine against independent references (validation/README.md)."""

@@ -1,0 +1,1 @@
+"""Peers: other renderers on the same scenes (validation/README.md)."""

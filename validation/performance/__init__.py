@@ -1,0 +1,1 @@
+"""Performance: what speed costs, and benchmarks (validation/README.md)."""

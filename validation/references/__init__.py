@@ -1,0 +1,1 @@
+"""References: independent implementations and the accuracy suite, imported by the scripts."""

@@ -1,0 +1,1 @@
+"""Tools: checks for refactors (validation/README.md)."""
