@@ -9,28 +9,30 @@ The public API:
 
 The names are imported on first use (PEP 562): a process loads only the modules its work needs (the
 scene loader, the EXR writer and colour-science, the vectorised engine, each when first asked for).
-``render`` alone is imported here: it is also the name of its submodule, which the import system binds
-on the package whenever ``cloudmeta.render`` is imported, and only this order keeps ``cloudmeta.render``
-the function. Its module is what every render needs anyway (numba and the kernels' dispatchers; no
-compiled code is loaded until the first call).
+``render`` alone is imported here (cloudmeta.renderer): what every render needs anyway (numba and the
+kernels' dispatchers; no compiled code is loaded until the first call).
+
+The package stands on three floors that import only downwards: ``scene`` (YAML -> Scene), ``renderer``
+(Scene -> image) and ``kernels`` (numba), with ``errors`` below them all; the modules here (the API, the
+command line, clusters, io, inspection, the ray engine) stand on top.
 """
 import importlib
 
-from .render import render
+from .renderer import render
 
 #: public name -> the submodule that defines it
 _EXPORTS = {
-    "Blob": "blob",
+    "Blob": "scene.blob",
     "field": "engine", "first_hit": "engine", "gradient": "engine", "normal": "engine",
     "optical_depth": "engine", "roots": "engine", "segments": "engine",
     "CloudmetaError": "errors", "InputError": "errors", "SceneError": "errors",
     "read_exr": "io", "write_exr": "io", "write_png": "io",
-    "load_scene": "scene",
+    "load_scene": "scene", "render_frame": "renderer", "RenderResult": "renderer",
     "render_frames": "cluster",
 }
 
 __all__ = ["Blob", "field", "first_hit", "gradient", "normal", "optical_depth", "roots", "segments", "load_scene",
-           "render", "render_frames", "write_exr", "read_exr", "write_png", "CloudmetaError", "InputError",
+           "render", "render_frame", "RenderResult", "render_frames", "write_exr", "read_exr", "write_png", "CloudmetaError", "InputError",
            "SceneError"]
 __version__ = "0.1.0"
 

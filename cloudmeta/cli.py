@@ -1,4 +1,4 @@
-"""The ``cloudmeta`` command: ``render`` a scene to OpenEXR (and PNG), ``inspect`` its field in 3D."""
+"""The cloudmeta command: render a scene to OpenEXR (and PNG), inspect its field in 3D."""
 from __future__ import annotations
 
 import argparse
@@ -10,20 +10,22 @@ import time
 from pathlib import Path
 
 from .errors import CloudmetaError, InputError, SceneError
-
-#: exit status of a run stopped by Ctrl-C or SIGTERM (128 + SIGINT, as a shell reports it)
-INTERRUPTED = 130
+from .runtime import INTERRUPTED, RENDERS, compile_notice, interruptible
+from .scene.vocabulary import QUALITIES, QUALITY_TARGETS, SHADOW_MAP_RESOLUTION, SHADOW_MODES
 
 
 def _render(args):
-    from .animation import load_animation
+    from .errors import OutputError
+    from .scene.animation import load_animation
+    for label, path in (("-o", args.output), ("--png", args.png)):
+        if path is not None and not path:  # -o '' is no file: refused, not taken for "no -o" (SCENE.exr here)
+            raise OutputError(f"{label}: expected a file name, got an empty path")
     if any(v is not None for v in (args.frames, args.workers, args.scheduler, args.tiles)) or args.overwrite \
             or load_animation(args.scene) is not None:
         if args.error:
             raise InputError("--error: only for a single image, not with --frames, --tiles, --workers, "
                              "--scheduler or an animated scene")
-        from .cluster import frames_command  # a sequence, tiles or a cluster (docs/animation.md)
-        return frames_command(args)
+        return _frames(args)  # a sequence, tiles or a cluster (docs/animation.md)
     from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_exr, encode_png
     from .scene import load_scene
 
@@ -40,7 +42,8 @@ def _render(args):
     print(f"cloudmeta: rendering {args.scene}: {w} x {h}, {spp} spp, quality {scene.render.quality}, "
           f"{scene.render.shadows} shadows, "
           f"{sum(len(m.blob) for m in scene.media)} balls in {len(scene.media)} media, "
-          f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights")
+          f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights"
+          + (f" ({scene.merged_balls} identical balls merged)" if scene.merged_balls else ""), flush=True)
     # every output is created now as a temporary file and renamed into place only when all are written
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
@@ -49,31 +52,28 @@ def _render(args):
         if len(tmps) > 1:
             encode_png(image, tmps[1], exposure=exposure, colourspace=scene.render.colourspace)
     if error is not None:
-        from .estimate import estimated_rel_rmse
+        from .renderer.estimate import estimated_rel_rmse
         target = (f"render.error {scene.render.error:g}" if scene.render.error is not None else
-                  f"quality {scene.render.quality}: {_TARGETS.get(scene.render.quality, 'none')}")
+                  f"quality {scene.render.quality}: {QUALITY_TARGETS.get(scene.render.quality, 'none')}")
         print(f"cloudmeta: estimated relative RMSE {estimated_rel_rmse(image, error):.2e} (target of {target}; "
               f"per pixel in the EXR's channels error.R/G/B)")
     print(f"cloudmeta: rendered in {took:.2f} s; wrote {', '.join(path for _, path, _ in outputs)}")
     return 0
 
 
-#: the relative RMSE each preset aims at (issue #11; docs/error_estimate.md)
-_TARGETS = {"draft": "3e-3", "default": "1e-3", "fine": "3e-4"}
-
-
 def _outputs(args, scene):
-    """[(where the path came from, path, extension)]: the EXR, then the PNG if one is asked for."""
-    if args.output:
+    """[(where the path came from, path, extension)]: the EXR, then the PNG if one is asked for: --png, or
+    the scene's output.png where there is no -o (-o alone writes the EXR alone)."""
+    if args.output is not None:
         exr = ("-o", args.output)
     elif scene.output.path:
         exr = (f"{scene.path}: output.path", scene.output.path)
     else:
         exr = ("the default output", str(Path(args.scene).with_suffix(".exr").name))
     out = [(*exr, ".exr")]
-    if args.png:
+    if args.png is not None:
         out.append(("--png", args.png, ".png"))
-    elif scene.output.png:
+    elif scene.output.png and args.output is None:
         out.append((f"{scene.path}: output.png", scene.output.png, ".png"))
     return out
 
@@ -82,11 +82,11 @@ def _render_image(scene, progress, error=False):
     """(image, error or None, seconds): the render, on a thread of its own (``interruptible``)."""
     import numpy as np
 
-    from .render import render
+    from .renderer import render_frame
     compile_notice()
     start = time.perf_counter()
-    result = interruptible(render, scene, progress=progress, error=error)
-    image, err = result if error else (result, None)
+    result = interruptible(render_frame, scene, progress=progress, error=error)
+    image, err = result.image, result.error
     took = time.perf_counter() - start
     if not np.all(np.isfinite(image)):
         raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
@@ -94,42 +94,38 @@ def _render_image(scene, progress, error=False):
     return image, err, took
 
 
-def compile_notice(note=""):
-    """Say so, before a render, when the kernels are not compiled yet (the first run on a machine)."""
-    from .config import is_compiled
-    from .kernels.radiance import render_pixels
-    if not is_compiled(render_pixels):
-        print(f"cloudmeta: compiling the kernels for this machine (once per kind of scene, about a minute on an idle core, then cached"
-              f"{'; ' + note if note else ''})", flush=True)
-
-
-def interruptible(work, *args, **kwargs):
-    """``work(*args, **kwargs)`` on a thread of its own, so that this (the main) thread stays free to take
-    Ctrl-C and SIGTERM at once: the kernels run without the GIL and cannot be stopped midway, so the
-    KeyboardInterrupt leaves the work running, goes up through this thread's ``atomic_outputs`` (which
-    remove their temporary files) and ``main`` then ends the process without waiting (``_RENDERS``)."""
-    result = {}
-
-    def run():
-        try:
-            result["value"] = work(*args, **kwargs)
-        except BaseException as exc:  # handed to the main thread
-            result["error"] = exc
-        finally:
-            _RENDERS.remove(worker)
-
-    worker = threading.Thread(target=run, name="cloudmeta-render", daemon=True)
-    _RENDERS.append(worker)
-    worker.start()
-    while worker.is_alive():
-        worker.join(0.2)
-    if "error" in result:
-        raise result["error"]
-    return result["value"]
-
-
-#: render threads still running (an interrupt then ends the process at once instead of waiting for them)
-_RENDERS = []
+def _frames(args):
+    """``cloudmeta render`` for a sequence, tiles or a cluster (cloudmeta.cluster.render_frames)."""
+    from .cluster import Outputs, parse_tiles, render_frames
+    from .io import check_exposure
+    from .scene.animation import parse_frames
+    if args.exposure is not None:
+        check_exposure(args.exposure, "--exposure")
+    frames = parse_frames(args.frames) if args.frames is not None else None
+    tiles = parse_tiles(args.tiles) if args.tiles is not None else 1
+    render = {k: v for k, v in (("quality", args.quality), ("shadows", args.shadows),
+                                ("shadow_map", args.shadow_map)) if v is not None}
+    where = (f"on a local cluster of {args.workers} worker processes" if args.workers is not None
+             else f"on the cluster at {args.scheduler}" if args.scheduler is not None else "in this process")
+    span = "the scene's frames" if frames is None else f"frames {frames[0]}..{frames[-1]}" + (
+        f" step {frames.step}" if frames.step != 1 else "")
+    n_tiles = tiles if isinstance(tiles, int) else tiles[0] * tiles[1]
+    print(f"cloudmeta: rendering {args.scene}: {span} {where}" + (f", {n_tiles} tiles a frame" if n_tiles > 1 else ""),
+          flush=True)
+    compile_notice("workers on this machine share the cache")
+    start = time.perf_counter()
+    outputs = Outputs(exr=args.output, png=args.png, exr_label="-o", png_label="--png")
+    report = render_frames(args.scene, frames, outputs, exposure=args.exposure, width=args.width, height=args.height,
+                           spp=args.spp, render=render, tiles=tiles, overwrite=args.overwrite, workers=args.workers,
+                           scheduler=args.scheduler, progress=not args.quiet)
+    took = time.perf_counter() - start
+    if report.skipped:
+        print(f"cloudmeta: skipped {len(report.skipped)} finished frames (their files exist; --overwrite renders "
+              f"them again)")
+    print(f"cloudmeta: rendered {len(report.rendered)} frames in {took:.2f} s")
+    for f in sorted(report.rendered):
+        print(f"cloudmeta: wrote {' and '.join(p for p in report.outputs[f] if p)}")
+    return 0
 
 
 def _inspect(args):
@@ -167,20 +163,25 @@ def _positive(text):
 
 
 def build_parser():
-    parser = _Parser(prog="cloudmeta", description=__doc__)
+    from . import __version__
+    parser = _Parser(prog="cloudmeta", description="The cloudmeta command: render a scene to OpenEXR (and "
+                                                   "PNG), inspect its field in 3D.")
+    parser.add_argument("--version", action="version", version=f"cloudmeta {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("render", help="render a YAML scene to OpenEXR")
-    r.add_argument("scene", help="the scene file (YAML, see MODEL.md §9)")
-    r.add_argument("-o", "--output", help="EXR path (default: the scene's output.path, else SCENE.exr here)")
-    r.add_argument("--png", help="also write an sRGB PNG preview here")
+    r.add_argument("scene", help="the scene file (YAML, see docs/model.md §9)")
+    r.add_argument("-o", "--output", help="EXR path (default: the scene's output.path, else SCENE.exr here); "
+                                          "with -o, no PNG unless --png")
+    r.add_argument("--png", help="also write an sRGB PNG preview here (default: the scene's output.png, "
+                                 "unless -o is given)")
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)
     r.add_argument("--spp", type=int, help="samples per pixel")
-    r.add_argument("--quality", choices=["draft", "default", "fine", "reference"], help="quadrature preset")
-    r.add_argument("--shadows", choices=["exact", "map"],
+    r.add_argument("--quality", choices=QUALITIES, help="quadrature preset")
+    r.add_argument("--shadows", choices=SHADOW_MODES,
                    help="shadow rays to every light (exact), or light-space maps for directional lights (map)")
-    r.add_argument("--shadow-map", type=_texels, help="texels per side of a shadow map (default 384)")
+    r.add_argument("--shadow-map", type=_texels, help=f"texels per side of a shadow map (default {SHADOW_MAP_RESOLUTION})")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: the scene's)")
     r.add_argument("--error", action="store_true",
                    help="estimate each pixel's error (a second, coarser render) and write it into the EXR as "
@@ -211,11 +212,23 @@ def build_parser():
 
 
 def _compile(args):
+    from .kernels.config import CACHE_FOLDER, cache_problem
     from .precompile import precompile
+    problem = cache_problem()
+    if problem is not None:  # the jobs' kernels would be thrown away with their processes
+        print(f"cloudmeta: nothing compiled: {problem}; kernels compile in every process that needs them",
+              file=sys.stderr)
+        return 1
     start = time.perf_counter()
     results = precompile(args.jobs)
-    print(f"cloudmeta: compiled in {time.perf_counter() - start:.0f} s; kernels cached for this machine")
-    return 0 if all(ok for _, _, ok in results) else 1
+    took = time.perf_counter() - start
+    failed = [name for name, _, ok in results if not ok]
+    if failed:
+        print(f"cloudmeta: {len(failed)} of {len(results)} jobs failed or were not cached ({took:.0f} s): "
+              f"{', '.join(failed)}; their kernels compile on first use", file=sys.stderr)
+        return 1
+    print(f"cloudmeta: compiled in {took:.0f} s; kernels cached in {CACHE_FOLDER}")
+    return 0
 
 
 def _terminate(signum, frame):
@@ -236,7 +249,7 @@ def main(argv=None):
         return args.run(args)
     except KeyboardInterrupt:
         print("cloudmeta: interrupted", file=sys.stderr, flush=True)
-        if _RENDERS:  # the kernels cannot be stopped midway: end the process, its temporary files are gone
+        if RENDERS:  # the kernels cannot be stopped midway: end the process, its temporary files are gone
             sys.stdout.flush()
             os._exit(INTERRUPTED)
         return INTERRUPTED

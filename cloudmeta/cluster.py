@@ -28,9 +28,31 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CloudmetaError, InputError, OutputError, SceneError
+from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_exr, encode_png
+from .renderer import render
+from .renderer.bands import progress_bar
+from .runtime import interruptible
+from .scene import load_scene
+from .scene.animation import load_animation
 
 #: a task that raises (not a dying worker: that is the scheduler's allowed-failures) is tried this many more times
 RETRIES = 2
+#: frames rendered here keep the scene validated by the output checks, up to this many balls in all (about
+#: 0.7 KB each); frames beyond it are loaded again when their turn comes
+KEEP_BALLS = 1_000_000
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """Where a sequence's frames go: ``exr`` and ``png`` are paths with ``{frame}`` format fields
+    (``out/f_{frame:04d}.exr``), relative to the current folder. ``exr`` None: the scene's output.path, else
+    SCENE.exr here, and then the scene's output.png too if it has one; an ``exr`` given with no ``png``
+    writes no PNG (whatever the scene's output.png). An empty path is refused. ``exr_label`` and
+    ``png_label`` are how an error names them (the CLI passes "-o" and "--png")."""
+    exr: str | None = None
+    png: str | None = None
+    exr_label: str = "output"
+    png_label: str = "png"
 
 
 @dataclass(frozen=True)
@@ -79,21 +101,19 @@ class _Failure:
 
 def load_frame(job: FrameJob):
     """The validated Scene of ``job``'s frame, with its overrides."""
-    from .scene import load_scene
     # the render overrides validated like the file's own (limits included)
     return load_scene(job.scene, width=job.width, height=job.height, spp=job.spp, render=dict(job.render),
                       frame=job.frame)
 
 
-def render_tile(job: FrameJob, rows=None, columns=None):
+def render_tile(job: FrameJob, rows=None, columns=None, scene=None):
     """The pixels of rows x columns of ``job``'s frame (all of it by default): the task of a cluster."""
     import numba
-
-    from .render import render
     if job.threads is not None:
         numba.set_num_threads(max(1, min(job.threads, numba.config.NUMBA_NUM_THREADS)))
     try:
-        return render(load_frame(job), progress=False, rows=rows, columns=columns)
+        frame_scene = load_frame(job) if scene is None else scene  # ``scene``: job's frame, validated already
+        return render(frame_scene, progress=False, rows=rows, columns=columns)
     except CloudmetaError as exc:
         return _Failure.of(exc)
 
@@ -143,7 +163,6 @@ def _check_outputs(frames, exrs, pngs, labels, inputs_of):
     """Every frame's outputs checked before any work (cloudmeta.io.check_output_path, check_distinct): the
     folder, the extension, the name, not an input of the scene at that frame (``inputs_of(frame)``), and no
     two outputs of the sequence naming one file (symbolic links resolved)."""
-    from .io import check_distinct, check_output_path
     seen = {}
     for f in frames:
         outputs = [(labels[0], exrs[f], ".exr")] + ([(labels[1], pngs[f], ".png")] if f in pngs else [])
@@ -163,45 +182,44 @@ def _with_frame_field(path):
     return str(p.with_name(f"{p.stem}_{{frame:04d}}{p.suffix}"))
 
 
-class _NoBar:
-    def update(self, n):
-        pass
-
-    def close(self):
-        pass
-
-
 def _frames_bar(total, enabled):
-    if not (enabled and total and sys.stderr.isatty()):
-        return _NoBar()
-    from tqdm import tqdm
-    return tqdm(total=total, unit="frame", desc="frames", leave=False)
+    return progress_bar(total, bool(enabled and total and sys.stderr.isatty()), unit="frame", desc="frames",
+                        mininterval=0.1)
 
 
 def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, width=None, height=None, spp=None,
                   render=None, tiles=1, overwrite=False, client=None, workers=None, scheduler=None,
-                  retries=RETRIES, progress=True, labels=("output", "png")) -> FramesReport:
+                  retries=RETRIES, progress=True) -> FramesReport:
     """Render ``frames`` of the scene file ``scene`` to one EXR each (and one PNG each with ``png``).
 
     ``frames``: an iterable of frame numbers; by default the scene's ``animation`` frames, or frame 0.
     ``output`` / ``png``: paths with ``{frame}`` format fields (``out/f_{frame:04d}.exr``), relative to the
     current folder; ``output`` defaults to the scene's output.path, else SCENE.exr here (with _{frame:04d}
-    before the extension for several frames). ``width``, ``height``, ``spp`` and ``render`` (a dict of render
+    before the extension for several frames), and ``png`` then to the scene's output.png; an ``output``
+    given with no ``png`` writes no PNG. ``output`` may instead be an Outputs (both paths and how
+    errors name them; ``png`` must then be None). ``width``, ``height``, ``spp`` and ``render`` (a dict of render
     settings such as {"quality": "draft"}) override the scene's; ``exposure`` the PNG's. ``tiles``: K bands
     of rows or an (R, C) grid per frame. A frame whose files exist is skipped unless ``overwrite``.
     ``client``: a dask.distributed Client; or ``workers=N`` (a local cluster, started and closed here) or
-    ``scheduler`` (the address of a running one). ``labels``: how errors name ``output`` and ``png`` (the
-    CLI's -o and --png). Every frame's outputs are checked before any work (cloudmeta.io.check_output_path;
+    ``scheduler`` (the address of a running one). Every frame's outputs are checked before any work (cloudmeta.io.check_output_path;
     the frames to render are loaded for that, so a bad frame fails before the first is rendered); each
     frame's EXR and PNG are written together (cloudmeta.io.atomic_outputs: both or neither). Locally each
-    frame renders on a thread of its own (cloudmeta.cli.interruptible), so Ctrl-C stops at once and leaves
+    frame renders on a thread of its own (cloudmeta.runtime.interruptible), from the scene validated by the
+    output checks (not read again, up to KEEP_BALLS balls in all), so Ctrl-C stops at once and leaves
     the finished frames; on a cluster the futures are cancelled and a cluster started here is closed (a
     best effort: the tasks running on workers end when their frame does). Returns a FramesReport.
     """
-    from .animation import load_animation
-    from .cli import interruptible
-    from .io import atomic_outputs, check_exposure, encode_exr, encode_png
-
+    if isinstance(output, Outputs):
+        if png is not None:
+            raise InputError("png: give it in the Outputs (output=Outputs(exr=..., png=...)), not both")
+        spec = output
+    else:
+        spec = Outputs(exr=output, png=png)
+    output, png = spec.exr, spec.png
+    for label, value in ((spec.exr_label, output), (spec.png_label, png)):
+        if isinstance(value, (str, bytes)) and not value:  # else the current folder, or the default output
+            raise OutputError(f"{label}: expected a file name, got an empty path")
+    explicit = output is not None  # then no PNG unless asked for: the scene's output.png is for its own output
     path = os.path.abspath(os.fspath(scene))
     if frames is None:
         animation = load_animation(path)
@@ -215,15 +233,15 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
     if exposure is not None:
         check_exposure(exposure)
     first = load_frame(FrameJob(path, frames[0], width, height, spp, render_overrides))  # fail before any work
-    labels = list(labels)
+    labels = [spec.exr_label, spec.png_label]
     if output is None:
         labels[0] = f"{path}: output.path" if first.output.path else "the default output"
         output = first.output.path or str(Path(path).with_suffix(".exr").name)
         if len(frames) > 1 and first.output.path is None:
             output = _with_frame_field(output)
-    if png is None and first.output.png:
+    if png is None and first.output.png and not explicit:
         labels[1] = f"{path}: output.png"
-    png = png if png is not None else first.output.png
+        png = first.output.png
     exrs = frame_paths(output, frames, labels[0])
     pngs = frame_paths(png, frames, labels[1]) if png else {}
     # first against the inputs every frame shares (an output that is the scene file must not count as a
@@ -234,8 +252,18 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
     for f in dict.fromkeys(frames):
         finished = all(os.path.exists(p) for p in report.outputs[f] if p is not None)
         (report.skipped if finished and not overwrite else todo).append(f)
-    _check_outputs(todo, exrs, pngs, labels, lambda f: first.inputs if f == frames[0] else load_frame(
-        FrameJob(path, f, width, height, spp, render_overrides)).inputs)
+    kept = {frames[0]: first}  # the validated scenes of the frames to render, each loaded once
+
+    def inputs_of(f):
+        if f not in kept:
+            kept[f] = load_frame(FrameJob(path, f, width, height, spp, render_overrides))
+        return kept[f].inputs
+    _check_outputs(todo, exrs, pngs, labels, inputs_of)
+    balls = 0
+    for f in todo:  # keep the scenes of the first frames up to KEEP_BALLS balls; load the others again
+        balls += sum(len(t.blob) for t in kept[f].media + kept[f].surfaces)
+        if balls > KEEP_BALLS and f != frames[0]:
+            del kept[f]
     windows = tile_windows(first.image.height, first.image.width, tiles)
     colourspace = first.render.colourspace
     exposure = first.output.exposure if exposure is None else exposure
@@ -258,7 +286,8 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
         if client is None and workers is None and scheduler is None:
             for f in todo:
                 job = FrameJob(path, f, width, height, spp, render_overrides)
-                pixels = interruptible(lambda: [(w, render_tile(job, *w)) for w in windows])
+                frame_scene = kept.pop(f, None)
+                pixels = interruptible(lambda: [(w, render_tile(job, *w, scene=frame_scene)) for w in windows])
                 write(f, _assemble(first, pixels))
                 bar.update(1)
         else:
@@ -341,39 +370,3 @@ def _dask_client(client, workers, scheduler):
                                dashboard_address=None, silence_logs=logging.ERROR)
     with cluster, Client(cluster) as c:
         yield c, threads
-
-
-def frames_command(args):
-    """``cloudmeta render`` for a sequence, tiles or a cluster (cloudmeta.cli's arguments)."""
-    import time
-
-    from .animation import parse_frames
-    from .cli import compile_notice
-    from .io import check_exposure
-    if args.exposure is not None:
-        check_exposure(args.exposure, "--exposure")
-    frames = parse_frames(args.frames) if args.frames is not None else None
-    tiles = parse_tiles(args.tiles) if args.tiles is not None else 1
-    render = {k: v for k, v in (("quality", args.quality), ("shadows", args.shadows),
-                                ("shadow_map", args.shadow_map)) if v is not None}
-    where = (f"on a local cluster of {args.workers} worker processes" if args.workers is not None
-             else f"on the cluster at {args.scheduler}" if args.scheduler is not None else "in this process")
-    span = "the scene's frames" if frames is None else f"frames {frames[0]}..{frames[-1]}" + (
-        f" step {frames.step}" if frames.step != 1 else "")
-    n_tiles = tiles if isinstance(tiles, int) else tiles[0] * tiles[1]
-    print(f"cloudmeta: rendering {args.scene}: {span} {where}" + (f", {n_tiles} tiles a frame" if n_tiles > 1 else ""),
-          flush=True)
-    compile_notice("workers on this machine share the cache")
-    start = time.perf_counter()
-    report = render_frames(args.scene, frames, args.output, args.png, exposure=args.exposure, width=args.width,
-                           height=args.height, spp=args.spp, render=render, tiles=tiles, overwrite=args.overwrite,
-                           workers=args.workers, scheduler=args.scheduler, progress=not args.quiet,
-                           labels=("-o", "--png"))
-    took = time.perf_counter() - start
-    if report.skipped:
-        print(f"cloudmeta: skipped {len(report.skipped)} finished frames (their files exist; --overwrite renders "
-              f"them again)")
-    print(f"cloudmeta: rendered {len(report.rendered)} frames in {took:.2f} s")
-    for f in sorted(report.rendered):
-        print(f"cloudmeta: wrote {' and '.join(p for p in report.outputs[f] if p)}")
-    return 0

@@ -6,19 +6,18 @@ parallel numba kernel.
 """
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from .blob import Blob, real_array, real_number
 from .errors import InputError
+from .kernels.kinds import DENSITY_MODES
 from .kernels.records import BVH, BlobRecord, Rays, TraceOut
-from .limits import LENGTH_RANGE
-from .kernels.sweep import DENSITY_EXCESS, DENSITY_FIELD, DENSITY_UNIFORM
 from .kernels.trace import field_at, first_hits, gradient_at, trace_rays
+from .renderer.bands import n_chunks
+from .scene.blob import Blob, real_array, real_number
+from .scene.limits import LENGTH_RANGE
 
-#: default root tolerance, relative to the blob's bounding-box diagonal (MODEL.md §3)
+#: default root tolerance, relative to the blob's bounding-box diagonal (docs/model.md §3)
 ROOT_TOLERANCE = 1e-9
-DENSITY_MODES = {"field": DENSITY_FIELD, "excess": DENSITY_EXCESS, "uniform": DENSITY_UNIFORM}
 
 
 def _points(name, value, bound=LENGTH_RANGE[1]):
@@ -54,12 +53,13 @@ def check_blob(blob):
 
 
 def prepare_rays(origins, directions, t_max=np.inf):
-    """Validated (N, 3) origins, unit (N, 3) directions and (N,) t_max, broadcast against each other."""
+    """Validated (N, 3) origins, unit (N, 3) directions and (N,) t_max, broadcast against each other as
+    numpy does: one origin (or direction) goes with every direction (origin), none with one gives no rays."""
     o = _points("origins", origins)
     d = _points("directions", directions, bound=np.inf)  # any magnitude: normalised without overflow
     if len(o) != len(d) and len(o) != 1 and len(d) != 1:
         raise InputError(f"origins, directions: expected the same number of rays, got {len(o)} and {len(d)}")
-    n = max(len(o), len(d))
+    n = 0 if 0 in (len(o), len(d)) else max(len(o), len(d))
     # np.array copies: writable and contiguous every time, so numba sees one type and compiles once
     o = np.array(np.broadcast_to(o, (n, 3)))
     # |d| without overflow or underflow: [1e200, 0, 0] and [1e-160, 0, 0] are [1, 0, 0]
@@ -81,14 +81,10 @@ def prepare_rays(origins, directions, t_max=np.inf):
 
 
 def root_tolerance(blob, tolerance=ROOT_TOLERANCE):
-    """Absolute tolerance on t: ``tolerance`` times the blob's bounding-box diagonal."""
+    """Absolute tolerance on t: ``tolerance`` times the blob's length (Blob.scale: its bounding-box diagonal,
+    unless some balls lie far from the rest)."""
     tolerance = real_number("tolerance", tolerance, lambda v: 0 < v <= 1e-3, "a number > 0 and <= 1e-3")
-    return tolerance * blob.diagonal
-
-
-def n_chunks(n_items):
-    """Work chunks for a parallel kernel: several per thread, so that uneven rays balance out."""
-    return max(1, min(n_items, 8 * numba.get_num_threads()))
+    return tolerance * blob.scale  # the diagonal, unless balls lie far from the rest
 
 
 def _trace(blob, origins, directions, t_max, tolerance, density="field", scale=1.0, cap=16, lists=True):
@@ -139,7 +135,7 @@ def segments(blob, origins, directions, t_max=np.inf, tolerance=ROOT_TOLERANCE):
 
 def optical_depth(blob, origins, directions, t_max=np.inf, density="field", scale=1.0,
                   tolerance=ROOT_TOLERANCE):
-    """(N,) exact tau over [0, t_max]: sigma_t = scale * rho, rho per ``density`` (MODEL.md §4)."""
+    """(N,) exact tau over [0, t_max]: sigma_t = scale * rho, rho per ``density`` (docs/model.md §4)."""
     return _trace(blob, origins, directions, t_max, tolerance, density, scale, lists=False)[0]
 
 
@@ -153,7 +149,7 @@ def field(blob, points):
 
 
 def first_hit(blob, origins, directions, t_max=np.inf, tolerance=ROOT_TOLERANCE):
-    """(N,) t where each ray first meets the blob drawn as an opaque surface (MODEL.md §6): the first
+    """(N,) t where each ray first meets the blob drawn as an opaque surface (docs/model.md §6): the first
     root where F rises through T, 0 where the origin is inside (F >= T), inf where the ray misses it
     within [0, t_max]. Only the first root is searched for, so this is cheaper than ``roots``."""
     blob = check_blob(blob)
@@ -175,7 +171,7 @@ def gradient(blob, points):
 
 
 def normal(blob, points):
-    """(N, 3) the outward unit normal of the isosurface through each point, -grad F / |grad F| (MODEL.md
+    """(N, 3) the outward unit normal of the isosurface through each point, -grad F / |grad F| (docs/model.md
     §6: F decreases outwards); nan where the gradient vanishes."""
     g = gradient(blob, points)
     length = np.linalg.norm(g, axis=1, keepdims=True)

@@ -1,6 +1,6 @@
 """Look at a scene in 3D: its field F and density sigma_t on a grid, with pyvista (``cloudmeta inspect``).
 
-``sample_grid`` samples F (and sigma_t, MODEL.md §4) on a regular grid and returns a ``pyvista.ImageData``
+``sample_grid`` samples F (and sigma_t, docs/model.md §4) on a regular grid and returns a ``pyvista.ImageData``
 that ParaView also reads (``--save grid.vti``). The grid sampler culls: each sample visits only the balls
 whose support boxes share its cell (``kernels/grid.py``), and its values equal ``cloudmeta.field`` at the
 same points.
@@ -26,10 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .blob import Blob
+from .engine import blob_record
 from .errors import InputError
+from .kernels.density import rho_value
 from .kernels.grid import bin_balls, sample_field
+from .kernels.kinds import DENSITY_MODES
+from .kernels.records import CellGrid
+from .renderer.pack import camera_frame
 from .scene import DirectionalLight, PointLight, Scene, load_scene
+from .scene.blob import Blob
 
 #: default bounds: the bounding box grown by this fraction of its longest side on every side
 PAD = 0.05
@@ -81,18 +86,16 @@ def _field_on_grid(blob, origin, spacing, dims):
     cell_origin, cell_size, cell_dims, pad = _cull_cells(blob)
     cell_start, cell_items = bin_balls(blob.bounds, pad, cell_origin, cell_size, cell_dims)
     out = np.empty(int(np.prod(dims)))
-    from .engine import blob_record
-    from .kernels.records import CellGrid
-
     sample_field(origin, spacing, dims, blob_record(blob),
                  CellGrid(cell_origin, cell_size, cell_dims, cell_start, cell_items), out)
     return out
 
 
 def sigma_t(medium, field):
-    """sigma_t = scale * rho of a scene medium (MODEL.md §4) from its field values: 0 where F < T."""
+    """sigma_t = scale * rho of a scene medium (docs/model.md §4) from its field values: 0 where F < T. rho is
+    the kernels' own formula (kernels.density.rho_value, run here by Python on the arrays)."""
     t = medium.blob.threshold
-    rho = {"field": field, "excess": field - t, "uniform": 1.0}[medium.density.mode]
+    rho = rho_value.py_func(field, DENSITY_MODES[medium.density.mode], t)
     return np.where(field >= t, medium.density.scale * rho, 0.0)
 
 
@@ -189,7 +192,7 @@ def sample_grid(scene_or_blob, resolution=96, bounds=None):
         the bounding box of every ball's support, grown by 5 % of its longest side.
 
     Point arrays (x fastest, pyvista's order): for a Blob, ``field``. For a scene: each medium's ``field``
-    and ``sigma_t`` (scale * rho where F >= T, else 0; MODEL.md §4), named exactly so when there is one
+    and ``sigma_t`` (scale * rho where F >= T, else 0; docs/model.md §4), named exactly so when there is one
     medium, ``field:NAME`` and ``sigma_t:NAME`` with several, plus their sum ``sigma_t``; each surface's
     ``field:NAME``. ``field_data["threshold:ARRAY"]`` holds the threshold T of each field array, so that a
     saved grid can draw F = T on its own (in ParaView too).
@@ -232,8 +235,6 @@ def _camera_frustum(camera, width, height, distance):
     """PolyData lines: from the eye to the 4 corners of the image plane at ``distance``, the plane's
     rectangle, and a small triangle on its top edge that shows which way is up."""
     import pyvista as pv
-
-    from .pack import camera_frame
 
     forward, right, up = camera_frame(camera)
     half_h = distance * np.tan(np.radians(camera.fov) / 2.0)
@@ -353,8 +354,6 @@ def draw_volume(plotter, scene, grid, widgets):
     lo, hi = np.array(grid.bounds[0::2]), np.array(grid.bounds[1::2])
     centre, diagonal = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
     cam = scene.camera
-    from .pack import camera_frame
-
     forward, right, up = camera_frame(cam)
     distance = float(np.dot(centre - cam.position, forward))
     if distance <= 0.0:  # the scene is behind the camera: show the image plane at the look-at point

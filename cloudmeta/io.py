@@ -1,21 +1,30 @@
 """Images out (and back in): linear OpenEXR with the working colourspace's chromaticities, sRGB PNG previews.
 
 The renderer's image is linear RGB(A) in the working colourspace, its RGB already composited over the
-background (MODEL.md §7, §8). Nothing here changes the numbers of an EXR; exposure and encoding belong
+background (docs/model.md §7, §8). Nothing here changes the numbers of an EXR; exposure and encoding belong
 to the PNG preview alone.
 """
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
+import re
+import socket
 import stat
 import tempfile
+import time
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: temporary files go unlocked (the writer's PID alone marks them as in use)
+    fcntl = None
 
 import numpy as np
 
-from .colour import DEFAULT_COLOURSPACE, chromaticities, encode_srgb
 from .errors import InputError, OutputError
-from .limits import MAX_EXPOSURE
+from .scene.colour import DEFAULT_COLOURSPACE, chromaticities, encode_srgb
+from .scene.limits import MAX_EXPOSURE
 
 _CHANNELS = "RGBA"
 #: the EXR channels of the per-pixel error estimate (render(..., error=True))
@@ -26,14 +35,120 @@ _UMASK = os.umask(0o022)
 os.umask(_UMASK)
 
 
+#: this machine, as the temporary names carry it: a folder may be shared between machines, and only the
+#: temporary files written here can be told to be stale (their writer's PID means nothing elsewhere)
+_HOST = hashlib.blake2s(socket.gethostname().encode(errors="replace"), digest_size=3).hexdigest()
+#: cloudmeta's temporary names: .NAME.tmp-PID-HOST-RANDOM.EXT (the extension of NAME), and .old beside a
+#: commit's backup (``_commit``)
+_TEMP_NAME = re.compile(r"\.(?P<name>.+)\.tmp-(?P<pid>[1-9][0-9]{0,9})-(?P<host>[0-9a-f]{6})-[a-z0-9_]{6,16}"
+                        r"(?P<ext>\.[^.]*)?(?:\.old)?\Z", re.DOTALL)
+#: the longest PID in a temporary name (Linux's pid_max is at most 2 ** 22): for the length checks
+_PID_WIDTH = 7
+#: folder -> when it was last swept of stale temporary files (``sweep_stale``), by this process
+_SWEPT = {}
+#: seconds before a folder is swept again by the same process
+_SWEEP_AGAIN = 600.0
+
+
 def _temporary(folder, name):
-    """A new empty file beside ``name`` in ``folder`` (same extension), with ordinary permissions."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-", suffix=os.path.splitext(name)[1], dir=folder)
+    """(path, fd) of a new empty file beside ``name`` in ``folder`` (same extension), with ordinary
+    permissions, locked (flock) through ``fd`` for as long as the writer keeps it open. Its name carries
+    this process's PID and this machine's tag, so that a later writer can tell, should this process die
+    before it removes the file (kill -9), that the file is stale (``sweep_stale``)."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{name}.tmp-{os.getpid()}-{_HOST}-", suffix=os.path.splitext(name)[1],
+                               dir=folder)
     try:
         os.fchmod(fd, 0o666 & ~_UMASK)
+        if fcntl is not None:
+            with contextlib.suppress(OSError):  # a file system without locks: the PID still marks it in use
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BaseException:
+        os.close(fd)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return tmp, fd
+
+
+def _longest_temporary(name, ext):
+    """The longest name that atomic_outputs may create beside ``name``: for the length checks."""
+    return f".{name}.tmp-{'9' * _PID_WIDTH}-{_HOST}-xxxxxxxx{ext}.old"
+
+
+def sweep_stale(folder):
+    """Remove from ``folder`` the temporary files of cloudmeta writers that died before they could remove
+    them (kill -9, a crash, a power cut), and return their names. Only cloudmeta's own kind
+    (``.NAME.tmp-PID-HOST-RANDOM.EXT``, and the ``.old`` backup of a commit), only those written on this
+    machine, and only where the writer is gone: no live process has that PID (a zombie counts as gone) and
+    the file's lock (flock, held by a writer for the file's life) can be taken. Anything else is left
+    alone; a file that cannot be read or removed is skipped (a best effort: never an error)."""
+    removed = []
+    try:
+        with os.scandir(folder) as it:
+            entries = [e for e in it if e.name.startswith(".") and ".tmp-" in e.name]
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _TEMP_NAME.match(entry.name)
+        if m is None or m["host"] != _HOST or (m["ext"] or "") != os.path.splitext(m["name"])[1]:
+            continue
+        try:
+            if not entry.is_file(follow_symlinks=False) or _alive(int(m["pid"])) or not _lock_free(entry.path):
+                continue
+            os.unlink(entry.path)
+        except OSError:
+            continue
+        removed.append(entry.name)
+    return removed
+
+
+def _sweep_once(folder):
+    """``sweep_stale(folder)`` unless this process did so lately (a sequence writes many frames to a folder)."""
+    now = time.monotonic()
+    if now - _SWEPT.get(folder, -_SWEEP_AGAIN) >= _SWEEP_AGAIN:
+        _SWEPT[folder] = now
+        sweep_stale(folder)
+
+
+def _alive(pid):
+    """Whether a process ``pid`` runs on this machine (True where that cannot be told: keep the file)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (OSError, OverflowError):  # PermissionError: it runs, as another user
+        return True
+    try:  # a zombie (killed, not yet reaped by its parent) is no writer
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rpartition(b")")[2].split()[0] != b"Z"
+    except (OSError, IndexError):
+        return True
+
+
+def _lock_free(path):
+    """Whether the flock of the file at ``path`` can be taken (then no writer holds it)."""
+    if fcntl is None:
+        return True
+    fd = None
+    for flags in (os.O_RDWR, os.O_RDONLY):  # a lock over NFS needs a file open for writing
+        try:
+            fd = os.open(path, flags | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+            break
+        except PermissionError:
+            continue
+        except OSError:
+            return False
+    if fd is None:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return True
+    except OSError:  # held by a writer (EWOULDBLOCK), or no locks here: cannot tell, keep the file
+        return False
     finally:
         os.close(fd)
-    return tmp
 
 
 @contextlib.contextmanager
@@ -41,19 +156,12 @@ def atomic_output(path):
     """Yield a temporary path in ``path``'s folder; rename it onto ``path`` only when the block succeeds.
 
     A reader never sees a half-written file, and on any failure (an exception, Ctrl-C) the temporary file
-    is removed and ``path`` is left as it was. The temporary name keeps the extension (``.x.exr.tmp-abc.exr``)
-    so that tools which look at it still know the format.
+    is removed and ``path`` is left as it was. The temporary name keeps the extension
+    (``.x.exr.tmp-PID-HOST-abc.exr``) so that tools which look at it still know the format; one left by a
+    killed process is removed by the next write into the folder (``sweep_stale``).
     """
-    path = os.fspath(path)
-    folder, name = os.path.split(os.path.abspath(path))
-    tmp = _temporary(folder, name)
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    with atomic_outputs([path]) as tmps:
+        yield tmps[0]
 
 
 @contextlib.contextmanager
@@ -62,17 +170,25 @@ def atomic_outputs(paths):
     now, so that a folder that cannot take them fails before any work), and renames them into place only
     when the whole block succeeded. Should a rename fail, the files already renamed are put back as they
     were (the previous file restored from a hard link, or removed where there was none): nothing new is left.
+    Before it creates them, the temporary files that killed writers left in those folders are removed
+    (``sweep_stale``, at most every few minutes per folder and process).
     """
+    for p in paths:
+        if not os.fspath(p):
+            raise OutputError("path: expected a file name, got an empty path")
     paths = [os.path.abspath(os.fspath(p)) for p in paths]
-    tmps = []
+    for folder in dict.fromkeys(os.path.dirname(p) for p in paths):
+        _sweep_once(folder)
+    tmps, fds = [], []
     try:
         for path in paths:
             folder, name = os.path.split(path)
             try:
-                tmp = _temporary(folder, name)
+                tmp, fd = _temporary(folder, name)
             except OSError as exc:
                 raise OutputError(f"{path}: cannot create a file in {folder}: {exc.strerror or exc}") from None
             tmps.append(tmp)
+            fds.append(fd)
         yield list(tmps)
         _commit(paths, tmps)
     except BaseException:
@@ -80,6 +196,9 @@ def atomic_outputs(paths):
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
         raise
+    finally:
+        for fd in fds:  # the locks go with them, once the files are in place or gone
+            os.close(fd)
 
 
 def _commit(paths, tmps):
@@ -130,7 +249,7 @@ def write_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False, error=No
     H x W x 3 estimate of each pixel's absolute error (cloudmeta.render(..., error=True)), written as the
     extra channels error.R, error.G, error.B (FLOAT).
     """
-    with atomic_output(path) as tmp:
+    with _api_output(path) as tmp:
         encode_exr(image, tmp, colourspace, half, error)
 
 
@@ -179,8 +298,27 @@ def read_exr(path):
 
 def write_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
     """Write an 8-bit sRGB preview: RGB only (the render's RGB is already over its background; alpha is dropped)."""
-    with atomic_output(path) as tmp:
+    with _api_output(path) as tmp:
         encode_png(image, tmp, exposure, colourspace)
+
+
+@contextlib.contextmanager
+def _api_output(path, label="path"):
+    """``atomic_output`` for write_exr and write_png: an empty path or a folder refused before any work,
+    and errors that name ``path``, not the hidden temporary file beside it."""
+    if not isinstance(path, (str, bytes, os.PathLike)):
+        raise InputError(f"{label}: expected a file path, got {type(path).__name__}")
+    path = os.fsdecode(path)
+    if not path:
+        raise OutputError(f"{label}: expected a file name, got an empty path")
+    if os.path.isdir(path):
+        raise OutputError(f"{path}: is a folder; expected a file name")
+    with atomic_output(path) as tmp:
+        try:
+            yield tmp
+        except OSError as exc:
+            text = str(exc.strerror or exc).replace(tmp, path)
+            raise (OSError(exc.errno, text, path) if exc.errno else OSError(text)) from None
 
 
 def encode_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
@@ -209,17 +347,21 @@ def check_output_path(path, ext, label, inputs=()):
     file system (the temporary name included). ``label`` names where the path came from (``-o``).
     Raises OutputError; returns the absolute path."""
     path = os.fspath(path)
+    if not path:  # else the current folder, or argparse's "-o ''" taken for no -o at all
+        raise OutputError(f"{label}: expected a file name, got an empty path")
     where = f"{label} {_shorten(path)}"
-    if not path or path.endswith(os.sep) or os.path.basename(path) in (".", ".."):
+    if path.endswith(os.sep) or os.path.basename(path) in (".", ".."):
         raise OutputError(f"{where}: expected a file name, got a folder")
     full = os.path.abspath(path)
     folder, name = os.path.split(full)
     name_max, path_max = _fs_limit(folder, "PC_NAME_MAX", 255), _fs_limit(folder, "PC_PATH_MAX", 4096)
-    tmp_name = f".{name}.tmp-xxxxxxxx{ext}.old"  # the longest name atomic_outputs creates next to it
+    tmp_name = _longest_temporary(name, ext)  # the longest name atomic_outputs creates next to it
+    extra = len(os.fsencode(tmp_name)) - len(os.fsencode(name))
     if len(os.fsencode(tmp_name)) > name_max:
-        raise OutputError(f"{where}: the name is too long for this file system (at most {name_max - 24} bytes)")
+        raise OutputError(f"{where}: the name is too long for this file system (at most {name_max - extra} bytes)")
     if len(os.fsencode(os.path.join(folder, tmp_name))) >= path_max:
-        raise OutputError(f"{where}: the path is too long for this file system (at most {path_max - 25} bytes)")
+        raise OutputError(f"{where}: the path is too long for this file system "
+                          f"(at most {path_max - extra - 1} bytes)")
     if os.path.isdir(full):
         raise OutputError(f"{where}: is a folder")
     for source in inputs:

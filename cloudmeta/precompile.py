@@ -5,7 +5,8 @@ The first render on a machine compiles its kernels (0.5-1.5 minutes of one core 
 pays again for the first scene of each kind. This compiles every kind at once, in ``jobs`` processes side by
 side: for a worker image, before a Dask cluster starts, or before a test run. Each job renders a tiny scene
 (or traces a few rays) in a fresh process; the compiled kernels land in the shared cache, and whatever a job
-finds there already is loaded, not compiled again.
+finds there already is loaded, not compiled again (an entry that cannot be read is compiled again and
+replaced: this repairs a damaged cache).
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -68,8 +70,12 @@ def jobs(folder):
 
 
 def precompile(n_jobs=2, report=print):
-    """Run every job, ``n_jobs`` processes at a time; returns [(name, seconds, ok)]. A failed job reports
-    its last line of error and the others go on (its kernels then compile on first use)."""
+    """Run every job, ``n_jobs`` processes at a time; returns [(name, seconds, ok)], ok where the job ran
+    and its kernels were cached. A failed job reports its last line of error and the others go on (its
+    kernels then compile on first use). What the jobs said of the cache (an entry that could not be read and
+    was compiled again, a folder that cannot be written) is passed on, each line once."""
+    from .kernels.config import UNCACHED
+    said, lock = set(), threading.Lock()
     with tempfile.TemporaryDirectory(prefix="cloudmeta-compile-") as folder:
         todo = jobs(folder)
         env = dict(os.environ)
@@ -81,11 +87,19 @@ def precompile(n_jobs=2, report=print):
             start = time.perf_counter()
             done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
             took = time.perf_counter() - start
-            ok = done.returncode == 0
-            last = (done.stderr.strip().splitlines() or ["?"])[-1]
-            report(f"cloudmeta: compiled {name} in {took:.0f} s" if ok else
-                   f"cloudmeta: compiling {name} failed: {last}")
-            return name, took, ok
+            notes = [line for line in done.stderr.splitlines() if line.startswith("cloudmeta: ")]
+            with lock:
+                for line in notes:
+                    if line not in said:
+                        said.add(line)
+                        report(line)
+            if done.returncode != 0:
+                last = (done.stderr.strip().splitlines() or ["?"])[-1]
+                report(f"cloudmeta: compiling {name} failed: {last}")
+                return name, took, False
+            cached = not any(UNCACHED in line for line in notes)
+            report(f"cloudmeta: compiled {name} in {took:.0f} s" + ("" if cached else ", not cached"))
+            return name, took, cached
 
         with ThreadPoolExecutor(max(1, n_jobs)) as pool:
             return list(pool.map(run, todo))

@@ -16,7 +16,7 @@ N_BALLS = 1200
 SCENE = """\
 # A broken stratocumulus bank of 1,200 metaballs (dense_1000.csv, made by scenes/make_dense.py) seen from
 # an aircraft above it, the sun 40 degrees up behind the bank; the benchmark scene of
-# validation/time_vs_error.py (256 x 256 at the default quality: 4-10 s on 2 cores).
+# validation/performance/time_vs_error.py (256 x 256 at the default quality: 4-10 s on 2 cores).
 # Render: cloudmeta render scenes/dense_1000.yaml --png dense_1000.png
 image: {width: 256, height: 256, spp: 1}
 camera: {position: [0, -44, 24], look_at: [0, -2, 1.0], up: [0, 0, 1], fov: 44}

@@ -16,7 +16,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository's cloudmeta
 
 from cloudmeta import render_frames  # noqa: E402
-from cloudmeta.animation import DEFAULT_FPS, load_animation, parse_frames  # noqa: E402
+from cloudmeta.scene.animation import DEFAULT_FPS, load_animation, parse_frames  # noqa: E402
 
 
 def main(argv=None):

@@ -1,6 +1,6 @@
 """Helpers the scene generators (make_*.py) share: ellipsoid orientations and the balls CSV.
 
-A row is (x, y, z, rx, ry, rz, ax, ay, az, weight), the 10-column layout of a balls file (MODEL.md §9):
+A row is (x, y, z, rx, ry, rz, ax, ay, az, weight), the 10-column layout of a balls file (docs/model.md §9):
 radii rx, ry, rz along the columns of Q = Rz(az) Ry(ay) Rx(ax), angles in degrees.
 """
 from __future__ import annotations
@@ -19,7 +19,7 @@ def unit(v):
 
 
 def euler_xyz(q):
-    """[ax, ay, az] in degrees with Q = Rz(az) Ry(ay) Rx(ax) (MODEL.md §9) for a rotation matrix ``q``."""
+    """[ax, ay, az] in degrees with Q = Rz(az) Ry(ay) Rx(ax) (docs/model.md §9) for a rotation matrix ``q``."""
     ay = -np.arcsin(np.clip(q[2, 0], -1.0, 1.0))
     if abs(q[2, 0]) < 1.0 - 1e-12:
         ax = np.arctan2(q[2, 1], q[2, 2])

@@ -67,7 +67,7 @@ def unit_frame(radii, rotation):
 
 
 def chord_ellipsoid(o, d, c, radii, rotation):
-    """MODEL.md §2: A = |d'|^2, B = -o'.d', C = |o'|^2 - 1, D = B^2 - A C, a = D / A."""
+    """docs/model.md §2: A = |d'|^2, B = -o'.d', C = |o'|^2 - 1, D = B^2 - A C, a = D / A."""
     m = unit_frame(radii, rotation)
     op, dp = m @ (o - c), m @ d
     A, B, C = dp @ dp, -op @ dp, op @ op - 1.0
@@ -220,7 +220,7 @@ def first_hit(field, threshold, origins, directions, t0, t1, step):
 
 
 def phase(kind, cos_theta, g1=0.0, g2=0.0, w=1.0):
-    """MODEL.md §4's phase functions, by name, straight from the formulas."""
+    """docs/model.md §4's phase functions, by name, straight from the formulas."""
     def hg(g):
         return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * cos_theta) ** 1.5)
     if kind == "isotropic":
@@ -244,3 +244,47 @@ def exp_weights(h, x, n_fine=200):
     y, w = np.polynomial.legendre.leggauss(n_fine)
     t = 0.5 * h * (y + 1.0)
     return np.array([0.5 * h * np.sum(w * np.exp(-t) * lagrange(x, k, t / h)) for k in range(len(x))])
+
+
+# --- walks: the BVH, the cell grid, the media along a ray ------------------------------------------------
+
+def boxes_on_ray(bounds, o, d, tmin=0.0, tmax=np.inf):
+    """Indices of the boxes bounds (N, 6) = [lo, hi] that the ray o + t d meets for some t in [tmin, tmax]:
+    the slab test on every box, one after the other (what a BVH walk must return at least)."""
+    o, d = np.asarray(o, float), np.asarray(d, float)
+    lo_t = np.full(len(bounds), tmin, float)
+    hi_t = np.full(len(bounds), tmax, float)
+    for c in range(3):
+        lo, hi = bounds[:, c], bounds[:, 3 + c]
+        if d[c] == 0.0:
+            outside = (o[c] < lo) | (o[c] > hi)
+            hi_t[outside] = -np.inf
+            continue
+        a, b = (lo - o[c]) / d[c], (hi - o[c]) / d[c]
+        lo_t = np.maximum(lo_t, np.minimum(a, b))
+        hi_t = np.minimum(hi_t, np.maximum(a, b))
+    return np.flatnonzero(lo_t <= hi_t)
+
+
+def boxes_holding(bounds, x):
+    """Indices of the boxes that hold the point x (bounds included)."""
+    return np.flatnonzero(np.all((bounds[:, :3] <= x) & (x <= bounds[:, 3:]), axis=1))
+
+
+def bin_balls(bounds, pad, origin, size, dims):
+    """{cell: [ball, ...]} of every ball's padded box over a grid of dims cells of side ``size`` from
+    ``origin``, cell c = i + nx (j + ny k), indices clamped to the grid, lists in ball order."""
+    cells = {}
+    for b, box in enumerate(bounds):
+        lo = np.clip(np.floor((box[:3] - pad - origin) / size), 0, np.asarray(dims) - 1).astype(int)
+        hi = np.clip(np.floor((box[3:] + pad - origin) / size), 0, np.asarray(dims) - 1).astype(int)
+        for k in range(lo[2], hi[2] + 1):
+            for j in range(lo[1], hi[1] + 1):
+                for i in range(lo[0], hi[0] + 1):
+                    cells.setdefault(i + dims[0] * (j + dims[1] * k), []).append(b)
+    return cells
+
+
+def media_optical_depth(media, o, d, t_max=np.inf):
+    """tau along o + t d through several media [(blob, density mode, scale)], each by optical_depth."""
+    return sum(optical_depth(blob, o, d, t_max, mode, scale) for blob, mode, scale in media)

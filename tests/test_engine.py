@@ -342,3 +342,16 @@ def test_directions_of_any_magnitude_give_the_roots_of_the_unit_direction(scale)
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(cm.optical_depth(blob, [0.1, 0, -5], [0, 0, scale]),
                                   cm.optical_depth(blob, [0.1, 0, -5], [0, 0, 1]))
+
+
+def test_no_rays_broadcast_to_no_results():
+    """One origin with no directions (or none with one) is no rays, as numpy broadcasts (1, 3) with (0, 3):
+    empty results, not numpy's broadcast ValueError (issue #27)."""
+    blob = cm.Blob([[0, 0, 0]], [1.0])
+    for o, d in (([[0, 0, -5]], np.zeros((0, 3))), (np.zeros((0, 3)), [0, 0, 1]), (np.zeros((0, 3)), np.zeros((0, 3)))):
+        assert cm.roots(blob, o, d) == [] and cm.segments(blob, o, d) == []
+        assert cm.optical_depth(blob, o, d).shape == (0,) and cm.first_hit(blob, o, d).shape == (0,)
+    with pytest.raises(cm.InputError, match="t_max"):
+        cm.roots(blob, [[0, 0, -5]], np.zeros((0, 3)), t_max=[1.0])
+    with pytest.raises(cm.InputError, match="same number of rays"):
+        cm.roots(blob, np.zeros((2, 3)), np.zeros((0, 3)))

@@ -1,5 +1,5 @@
 """cloudmeta.inspect and kernels/grid: the culled grid sampler equals cloudmeta.field, the grid's geometry is
-right, sigma_t follows MODEL.md §4, and ``cloudmeta inspect`` writes pictures and grids off screen."""
+right, sigma_t follows docs/model.md §4, and ``cloudmeta inspect`` writes pictures and grids off screen."""
 import numpy as np
 import pytest
 import pyvista as pv

@@ -6,7 +6,7 @@ import OpenEXR
 import pytest
 from PIL import Image
 
-from cloudmeta.colour import chromaticities
+from cloudmeta.scene.colour import chromaticities
 from cloudmeta.errors import InputError
 from cloudmeta.io import read_exr, write_exr, write_png
 
@@ -172,3 +172,105 @@ def test_outputs_get_ordinary_permissions_not_mkstemps(tmp_path):
             open(t, "wb").close()
     for name in ("a.exr", "b.exr", "b.png"):
         assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~_UMASK
+
+
+# --- issue #27: what a killed writer leaves, and errors that name the user's path ------------------------------
+
+def _dead_pid():
+    """The PID of a process that has just ended (and been reaped)."""
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    return int(proc.stdout)
+
+
+def test_a_writer_killed_with_sigkill_leaves_temporaries_that_the_next_write_removes(tmp_path):
+    import subprocess
+    import sys
+    code = ("import os, signal, sys\n"
+            "from cloudmeta.io import atomic_outputs\n"
+            "block = atomic_outputs([sys.argv[1], sys.argv[2]])\n"
+            "block.__enter__()\n"
+            "os.kill(os.getpid(), signal.SIGKILL)\n")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    proc = subprocess.run([sys.executable, "-c", code, str(tmp_path / "a.exr"), str(tmp_path / "a.png")],
+                          env=dict(os.environ, PYTHONPATH=root), capture_output=True, timeout=120)
+    assert proc.returncode == -9, proc.stderr
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert len(left) == 2 and left[0].startswith(".a.exr.tmp-") and left[1].startswith(".a.png.tmp-"), left
+    assert all((tmp_path / n).stat().st_size == 0 for n in left)
+    write_exr(image(), tmp_path / "b.exr")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.exr"]
+
+
+def test_only_stale_temporaries_of_cloudmetas_kind_from_this_machine_are_swept(tmp_path):
+    import subprocess
+    import sys
+    from cloudmeta.io import _HOST, sweep_stale
+    dead, other = _dead_pid(), "000000" if _HOST != "000000" else "111111"
+    stale = [f".a.exr.tmp-{dead}-{_HOST}-abcd1234.exr", f".a.png.tmp-{dead}-{_HOST}-abcd1234.png",
+             f".a.exr.tmp-{dead}-{_HOST}-abcd1234.exr.old", f".x.tmp-{dead}-{_HOST}-abcd1234"]
+    kept = [f".b.exr.tmp-{os.getpid()}-{_HOST}-abcd1234.exr",   # a live writer (this process)
+            f".c.exr.tmp-{dead}-{other}-abcd1234.exr",          # another machine's: its PID means nothing here
+            ".d.exr.tmp-abcd1234.exr",                          # no PID (cloudmeta before #27): unknown writer
+            f".e.exr.tmp-{dead}-{_HOST}-abcd1234.png",          # not the extension of its name
+            f".f.exr.tmp-{dead}-{_HOST}-notes.txt",             # someone else's name
+            f"g.exr.tmp-{dead}-{_HOST}-abcd1234.exr",           # not hidden
+            f".h.exr.tmp-{dead}-{_HOST}-abcd1234.exr",          # locked: a writer in another PID namespace
+            "a.exr"]
+    for name in stale + kept:
+        (tmp_path / name).write_bytes(b"")
+    os.symlink(tmp_path / "a.exr", tmp_path / f".s.exr.tmp-{dead}-{_HOST}-abcd1234.exr")  # not a file: kept
+    kept.append(f".s.exr.tmp-{dead}-{_HOST}-abcd1234.exr")
+    locked = f".h.exr.tmp-{dead}-{_HOST}-abcd1234.exr"
+    holder = subprocess.Popen([sys.executable, "-c", "import fcntl, sys; f = open(sys.argv[1]); "
+                               "fcntl.flock(f, fcntl.LOCK_EX); print('locked', flush=True); sys.stdin.read()",
+                               str(tmp_path / locked)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "locked\n"
+        assert sorted(sweep_stale(tmp_path)) == sorted(stale)
+    finally:
+        holder.communicate("")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept)
+
+
+def test_a_temporary_file_is_locked_while_its_writer_works(tmp_path):
+    from cloudmeta.io import _lock_free, atomic_outputs, sweep_stale
+    with atomic_outputs([tmp_path / "a.exr"]) as (tmp,):
+        assert not _lock_free(tmp)
+        assert sweep_stale(tmp_path) == []
+        assert os.path.exists(tmp)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.exr"]
+
+
+@pytest.mark.parametrize("target, fragment", [
+    ("missing/a.exr", "missing/a.exr: cannot create a file in"),
+    ("", "path: expected a file name, got an empty path"),
+    (".", "is a folder"),
+])
+def test_write_errors_name_the_users_path_not_the_temporary_file(tmp_path, monkeypatch, target, fragment):
+    from cloudmeta.errors import OutputError
+    monkeypatch.chdir(tmp_path)
+    for write in (write_exr, write_png):
+        with pytest.raises(OutputError, match=fragment) as e:
+            write(image(), target)
+        assert ".tmp-" not in str(e.value)
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_failed_encode_names_the_users_path(tmp_path, monkeypatch):
+    from cloudmeta import io
+
+    def full(image, path, *args):
+        raise OSError(f"cannot write {path}: disk full")
+    monkeypatch.setattr(io, "encode_exr", full)
+    with pytest.raises(OSError, match="a.exr: disk full") as e:
+        io.write_exr(image(), tmp_path / "a.exr")
+    assert ".tmp-" not in str(e.value) and not list(tmp_path.iterdir())
+
+
+def test_check_output_path_refuses_an_empty_path():
+    from cloudmeta.errors import OutputError
+    from cloudmeta.io import check_output_path
+    with pytest.raises(OutputError, match="^-o: expected a file name, got an empty path$"):
+        check_output_path("", ".exr", "-o")

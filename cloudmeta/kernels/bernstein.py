@@ -8,7 +8,7 @@ from numba import njit
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
 
 DEGREE = 6
 NCOEF = DEGREE + 1
@@ -99,8 +99,8 @@ def bernstein_integral(c, s0, s1, work):
 @njit(**NJIT_INLINE)
 def bernstein_eval(c, s):
     """B(s) of a degree-6 curve: the apex of one de Casteljau triangle (on scalars)."""
-    left, _ = _casteljau_rows(c[0], c[1], c[2], c[3], c[4], c[5], c[6], s)
-    return left[6]
+    (_, _, _, _, _, _, apex), _ = _casteljau_rows(c[0], c[1], c[2], c[3], c[4], c[5], c[6], s)
+    return apex
 
 
 @njit(**NJIT_INLINE)
@@ -116,9 +116,9 @@ def bernstein_cumulative(c, s):
     e7 = e6 + c[6] / 7.0
     # one de Casteljau row takes degree 7 to degree 6; the rest is the degree-6 triangle
     u = 1.0 - s
-    left, _ = _casteljau_rows(s * e1, u * e1 + s * e2, u * e2 + s * e3, u * e3 + s * e4, u * e4 + s * e5,
-                              u * e5 + s * e6, u * e6 + s * e7, s)
-    return left[6]
+    (_, _, _, _, _, _, apex), _ = _casteljau_rows(s * e1, u * e1 + s * e2, u * e2 + s * e3, u * e3 + s * e4,
+                                                  u * e4 + s * e5, u * e5 + s * e6, u * e6 + s * e7, s)
+    return apex
 
 
 @njit(**NJIT)

@@ -9,7 +9,7 @@ the median when everything lands on one side), which is O(N log N) and needs no 
 import numpy as np
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
 
 LEAF_SIZE = 4
 STACK = 64

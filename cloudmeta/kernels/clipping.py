@@ -24,7 +24,7 @@ latency):
 import numpy as np
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
 from .bernstein import _casteljau_rows, _fma
 
 #: an iteration that keeps more than this fraction of its interval is stalling (near a multiple root):
@@ -189,9 +189,8 @@ def _polish7(c0, c1, c2, c3, c4, c5, c6, smin, smax):
              abs(c6 - 2.0 * c5 + c4))
     x = 0.5 * (smin + smax)
     for _ in range(2):
-        left, right = _casteljau_rows(c0, c1, c2, c3, c4, c5, c6, x)
-        v = left[6]
-        dv = 6.0 * (right[1] - left[5])
+        (_, _, _, _, _, l5, v), (_, r1, _, _, _, _, _) = _casteljau_rows(c0, c1, c2, c3, c4, c5, c6, x)
+        dv = 6.0 * (r1 - l5)  # B'(x) = 6 (the right edge's second - the left edge's sixth value)
         if dv == 0.0:
             break
         step = v / dv

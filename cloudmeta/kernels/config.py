@@ -9,13 +9,23 @@ Cache, scoped to cloudmeta's kernels
 holds a cached function, not of the functions it calls in other files, so after an edit to, say,
 ``bernstein.py`` a cached caller would run the old code. The cache therefore lives in a folder named
 after a hash of every kernel source: any edit starts a fresh cache. The folder is
-``$CLOUDMETA_CACHE_DIR`` or ``~/.cache/cloudmeta``; ``NUMBA_CACHE_DIR``, when set, is respected as it is,
-and ``CLOUDMETA_NO_CACHE=1`` turns caching off.
+``$CLOUDMETA_CACHE_DIR`` or ``~/.cache/cloudmeta``; ``NUMBA_CACHE_DIR``, when set, is respected as it is
+(numba's layout in it), and ``CLOUDMETA_NO_CACHE=1`` turns caching off.
 
-The folder reaches numba through a cache locator (``_KernelCacheLocator``) that answers only for the
-functions defined in ``cloudmeta/kernels``: ``numba.config.CACHE_DIR`` is left alone, so other numba code
-in the process caches where it would without cloudmeta. (numba picks a function's locator when the
-function is decorated, so the locator is registered here, before any kernel module is imported.)
+The kernels' dispatchers get a cache of their own (``_KernelCache``, installed by wrapping numba's
+``Dispatcher.enable_caching`` for the functions defined in ``cloudmeta/kernels`` alone: other numba code in
+the process caches where it would without cloudmeta, and ``numba.config.CACHE_DIR`` is left alone; it is
+installed here, before any kernel module is imported, since numba makes a function's cache when the
+function is decorated). Its one locator (``_KernelCacheLocator``) always answers for a kernel, so that a
+kernel is never cached by numba's fallbacks (``__pycache__`` beside the sources, ``~/.cache/numba``),
+folders without the source hash. It differs from numba's cache in two faults only:
+
+- a cached entry that cannot be read (truncated, garbage, an index numba cannot unpickle, data it cannot
+  rebuild a kernel from) is removed and the kernel compiled again (and saved anew), with one line on
+  stderr for the process, instead of numba's traceback;
+- a folder that cannot be written (read-only, a file where the folder should be, a full disk) is still
+  read, but nothing is saved there: the kernels not found in it compile in memory, with one line on stderr
+  for the process, never into another folder.
 
 Threading layer: process-wide by nature
 ---------------------------------------
@@ -28,14 +38,18 @@ choice: not when ``NUMBA_THREADING_LAYER`` is set, not when the program set
 ``numba.config.THREADING_LAYER`` itself before importing cloudmeta, and not when the pool is already
 running. (The renderer itself runs bands of rows on Python threads and does not use the pool's layer.)
 """
+import errno
 import hashlib
 import os
+import sys
+import tempfile
 from pathlib import Path
 
 import numba
 from numba.core import caching
+from numba.core import dispatcher as _dispatcher
 
-KERNELS = Path(__file__).resolve().parent / "kernels"
+KERNELS = Path(__file__).resolve().parent
 
 
 def _kernel_source_hash():
@@ -47,21 +61,80 @@ def _kernel_source_hash():
 
 
 def _cache_folder():
-    """The folder of cloudmeta's compiled kernels, or None where numba's NUMBA_CACHE_DIR rules; False
-    where it cannot be written (then nothing is cached rather than risk a stale cache)."""
+    """The folder of cloudmeta's compiled kernels: ``$NUMBA_CACHE_DIR`` where set, else
+    ``$CLOUDMETA_CACHE_DIR`` or ``~/.cache/cloudmeta``, in a subfolder named after the kernel sources."""
     if os.environ.get("NUMBA_CACHE_DIR"):
-        return None
+        return Path(os.environ["NUMBA_CACHE_DIR"])
     base = Path(os.environ.get("CLOUDMETA_CACHE_DIR", Path.home() / ".cache" / "cloudmeta"))
-    folder = base / f"numba-{_kernel_source_hash()}"
+    return base / f"numba-{_kernel_source_hash()}"
+
+
+def _why(exc):
+    """An OSError of making or writing the cache folder, in a few words."""
+    if exc.errno == errno.EEXIST:
+        return "a file stands where the folder should be"
+    if exc.errno == errno.ENOTDIR:
+        return "a file stands in its path"
+    return (exc.strerror or str(exc) or type(exc).__name__).lower()
+
+
+def _writable(folder):
+    """None where compiled kernels can be saved in ``folder`` (made here if missing), else why not."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return False
-    return folder
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as exc:
+        return _why(exc)
+    return None
 
 
-class _KernelCacheLocator(caching.UserProvidedCacheLocator):
-    """numba's locator for a user-given cache folder, answering only for cloudmeta's kernels."""
+#: what has been said on stderr in this process (each fault once)
+_SAID = set()
+#: why compiled kernels are not saved (``cache_problem``), None while they are
+_PROBLEM = None
+
+
+def _say_once(kind, line):
+    if kind not in _SAID:
+        _SAID.add(kind)
+        print(line, file=sys.stderr, flush=True)
+
+
+def cache_problem():
+    """None where the kernels compiled in this process are saved for later ones, else why not, in words:
+    caching turned off, or a cache folder that cannot be written (it is still read)."""
+    if not CACHE:
+        return "caching is off (CLOUDMETA_NO_CACHE is set)"
+    return None if _PROBLEM is None else f"{CACHE_FOLDER} is not writable ({_PROBLEM})"
+
+
+#: what the line on a cache that cannot be written says (``cloudmeta compile`` looks for it)
+UNCACHED = "kernels will be compiled on every run"
+
+
+def say_uncached():
+    """Say once per process, on stderr, that the kernels compiled now are not saved (when they are not)."""
+    if CACHE and _PROBLEM is not None:
+        hint = "NUMBA_CACHE_DIR" if os.environ.get("NUMBA_CACHE_DIR") else "CLOUDMETA_CACHE_DIR"
+        _say_once("uncached", f"cloudmeta: {UNCACHED}: {cache_problem()}; "
+                              f"set {hint} to a writable folder")
+
+
+def _cannot_save(exc):
+    global _PROBLEM
+    if _PROBLEM is None:
+        _PROBLEM = _why(exc)
+    say_uncached()
+
+
+def _is_kernel_file(py_file):
+    return Path(py_file).resolve().parent == KERNELS
+
+
+class _KernelCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+    """numba's locator of a cache folder, for cloudmeta's kernels; it answers for them whether or not the
+    folder can be written (saving is then skipped, _KernelCache), so that numba never falls back to a
+    folder without the source hash for a kernel."""
     folder = None
 
     def __init__(self, py_func, py_file):
@@ -69,24 +142,138 @@ class _KernelCacheLocator(caching.UserProvidedCacheLocator):
         self._lineno = py_func.__code__.co_firstlineno
         self._cache_path = os.path.join(str(self.folder), self.get_suitable_cache_subpath(py_file))
 
+    def get_cache_path(self):
+        return self._cache_path
+
     @classmethod
     def from_function(cls, py_func, py_file):
-        if cls.folder is None or Path(py_file).resolve().parent != KERNELS:
+        if cls.folder is None or not _is_kernel_file(py_file):
             return None
-        return super(caching.UserProvidedCacheLocator, cls).from_function(py_func, py_file)
+        return cls(py_func, py_file)
+
+
+class _KernelCacheImpl(caching.CompileResultCacheImpl):
+    _locator_classes = [_KernelCacheLocator]
+
+
+class _KernelCacheFile(caching.IndexDataCacheFile):
+    """numba's index and data files of one function, which can discard what cannot be read."""
+
+    def _load_index(self):
+        try:
+            return super()._load_index()
+        except NotADirectoryError:
+            return {}  # a file stands in the cache folder's path: nothing cached
+
+    def save(self, key, data):
+        try:
+            self._load_index()
+        except OSError:
+            pass  # saving meets it
+        except Exception:  # an index that cannot be read (damaged since it was loaded): started anew
+            self.discard(self._index_path)
+        super().save(key, data)
+
+    def discard(self, path):
+        """Remove a file that could not be read: a data file, or the index with every data file of the
+        function (those it listed, and no other file can use them)."""
+        doomed = [path]
+        if path == self._index_path:
+            prefix, suffix = self._data_name_pattern.split("{number:d}")
+            try:
+                names = os.listdir(self._cache_path)
+            except OSError:
+                names = []
+            doomed += [os.path.join(self._cache_path, name) for name in names if name.startswith(prefix)
+                       and name.endswith(suffix) and name[len(prefix):-len(suffix)].isdigit()]
+        for doomed_path in doomed:
+            try:
+                os.remove(doomed_path)
+            except OSError:
+                pass  # a read-only folder: read and found broken again by the next process
+
+
+def _reason(exc):
+    text = " ".join(str(exc).split())
+    if isinstance(exc, EOFError) or "truncated" in text:
+        return "truncated"
+    text = f"damaged: {type(exc).__name__}: {text}" if text else f"damaged: {type(exc).__name__}"
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
+class _KernelCache(caching.FunctionCache):
+    """numba's cache of a kernel's compiled overloads, in the kernel cache folder, with the two faults
+    handled (module docstring)."""
+    _impl_class = _KernelCacheImpl
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        files = self._cache_file
+        self._cache_file = _KernelCacheFile(files._cache_path, self._impl.filename_base, files._source_stamp)
+        module = py_func.__module__.rpartition(".")[2]
+        self._kernel = f"{module}.{getattr(py_func, '__qualname__', py_func.__name__)}"
+
+    def load_overload(self, sig, target_context):
+        cres = super().load_overload(sig, target_context)
+        if cres is None and self._enabled:
+            say_uncached()  # compiled next, and saved only where the folder can be written
+        return cres
+
+    def _load_overload(self, sig, target_context):
+        """numba's load (index, data file, rebuild), except that a file that cannot be read or rebuilt
+        from is discarded and the load is a miss (numba then compiles the kernel and saves it anew)."""
+        if not self._enabled:
+            return None
+        files = self._cache_file
+        key = self._index_key(sig, target_context.codegen())
+        path = files._index_path
+        try:
+            name = files._load_index().get(key)
+            if name is None:
+                return None
+            path = files._data_path(name)
+            try:
+                data = files._load_data(name)
+            except FileNotFoundError:
+                return None  # removed since the index was written (numba's rule): a miss
+            return self._impl.rebuild(target_context, data)
+        except Exception as exc:
+            files.discard(path)
+            _say_once("unreadable", f"cloudmeta: the cached kernel {self._kernel} in {files._cache_path} could "
+                                    f"not be read ({_reason(exc)}); compiling it again")
+            return None
+
+    def save_overload(self, sig, data):
+        if _PROBLEM is not None:
+            return
+        try:
+            super().save_overload(sig, data)
+        except OSError as exc:
+            _cannot_save(exc)
+
+
+def _enable_caching(dispatcher):
+    """``Dispatcher.enable_caching`` (``cache=True``): a _KernelCache for cloudmeta's kernels, numba's own
+    cache for every other function (and for the kernels where NUMBA_CACHE_LOCATOR_CLASSES names the
+    locators)."""
+    if (_KernelCacheLocator.folder is not None and _is_kernel_file(dispatcher.py_func.__code__.co_filename)
+            and not getattr(numba.config, "CACHE_LOCATOR_CLASSES", None)):
+        dispatcher._cache = _KernelCache(dispatcher.py_func)
+    else:
+        _enable_caching.numba(dispatcher)
 
 
 def _register_cache():
+    """Whether the kernels are cached (``cache=True``), and their cache installed where they are."""
+    global _PROBLEM
     if os.environ.get("CLOUDMETA_NO_CACHE", ""):
         return False
     folder = _cache_folder()
-    if folder is None:
-        return True  # NUMBA_CACHE_DIR: numba's own locator
-    if folder is False:
-        return False
+    _PROBLEM = _writable(folder)
     _KernelCacheLocator.folder = folder
-    if _KernelCacheLocator not in caching.CacheImpl._locator_classes:
-        caching.CacheImpl._locator_classes.insert(0, _KernelCacheLocator)
+    dispatcher = _dispatcher.Dispatcher
+    _enable_caching.numba = getattr(dispatcher.enable_caching, "numba", dispatcher.enable_caching)
+    dispatcher.enable_caching = _enable_caching
     return True
 
 
@@ -101,6 +288,8 @@ def _prefer_workqueue():
 
 _prefer_workqueue()
 CACHE = _register_cache()
+#: the folder of the compiled kernels (None where caching is off)
+CACHE_FOLDER = _KernelCacheLocator.folder
 FASTMATH = False
 
 #: flags for serial kernels

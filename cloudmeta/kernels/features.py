@@ -1,6 +1,6 @@
 """What a scene may lack: opaque surfaces and shadow maps, compiled only for the scenes that have them.
 
-cloudmeta.pack.scene_records gives a scene with neither surfaces nor shadow maps None in their places
+cloudmeta.renderer.pack.scene_records gives a scene with neither surfaces nor shadow maps None in their places
 (``SceneRecords.surfaces`` and ``Lights.maps``). The helpers here take that record and pick their
 implementation by its type when numba compiles the caller (``@overload``): with None they compile to
 the trivial answer (no hit, not blocked, no map), so none of the surface or shadow-map code is compiled
@@ -15,7 +15,7 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload
 
-from ..config import OVERLOAD
+from .config import OVERLOAD
 from .bvh import misses_root_boxes
 from .shadowmap import map_optical_depth
 from .surfaces import first_surface_hit, n_surfaces, surfaces_block

@@ -16,7 +16,7 @@ binned into.
 import numpy as np
 from numba import njit, prange
 
-from ..config import NJIT, NJIT_PARALLEL
+from .config import NJIT, NJIT_PARALLEL
 from .metaball import field_sum
 from .records import BlobRecord
 

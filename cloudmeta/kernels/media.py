@@ -1,16 +1,17 @@
 """Every medium along one ray: the pieces a camera ray integrates over, and the optical depth of a
-shadow ray. The media are one records.Media (cloudmeta.pack.pack_media)."""
+shadow ray. The media are one records.Media (cloudmeta.renderer.pack.pack_media)."""
 import math
 
 import numpy as np
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF
 from .bvh import bvh_candidates
 from .records import BlobRecord, RayPieces
 from .shadow import column_density
-from .sweep import rho_value, trace_blob
+from .density import rho_value
+from .sweep import trace_blob
 
 
 @njit(**NJIT)
@@ -59,7 +60,7 @@ def grow_ray_pieces(rp, n, need, n_med):
 
 @njit(**NJIT_INLINE)
 def piece_sigma_t(field_c, mode, threshold, scale, out):
-    """out = sigma_t's control values on a piece whose field has control values field_c (MODEL.md §4)."""
+    """out = sigma_t's control values on a piece whose field has control values field_c (docs/model.md §4)."""
     for q in range(NCOEF):
         out[q] = scale * rho_value(field_c[q], mode, threshold)
 

@@ -1,6 +1,6 @@
 """One metaball on a ray: its chord, its Bernstein control values, and its falloff and gradient at a point.
 
-MODEL.md §1-2. A ball is a centre c and a frame M = S^-1 Q^T with u(x) = |M (x - c)|^2.
+docs/model.md §1-2. A ball is a centre c and a frame M = S^-1 Q^T with u(x) = |M (x - c)|^2.
 
 On its chord, s in [0, 1], u(s) = 1 - 4 a s (1 - s) = (1 - a) + a v^2 with v = 1 - 2 s, and the ball's
 field is q k(u(s)). ``wyvill6`` and ``murakami4`` are exactly one degree-6 Bernstein polynomial per chord
@@ -13,7 +13,7 @@ Value tolerance
 ---------------
 Every piece differs from q k(u(s)) by at most ``APPROX_TOLERANCE`` |q| = 1e-12 |q| anywhere on the piece
 (plus the rounding of the conversion below, a few 1e-15 |q|); where pieces of several balls overlap, the
-field's error is at most 1e-12 sum |q_i|. This is the simple translation of MODEL.md §3's root tolerance
+field's error is at most 1e-12 sum |q_i|. This is the simple translation of docs/model.md §3's root tolerance
 (1e-9 of the scene's diagonal, on t): a value error delta moves a crossing by delta / |dF/dt|, so roots
 stay within 1e-9 of those of the exact field wherever |dF/dt| >= 1e-3 sum |q_i| per unit length, and
 tau is off by at most 1e-12 sum |q_i| per unit of inside length. What no value tolerance buys: a ray
@@ -63,12 +63,9 @@ import math
 import numpy as np
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
+from .kinds import BLINN, MURAKAMI4, NISHIMURA, WYVILL6
 
-WYVILL6 = 0
-MURAKAMI4 = 1
-NISHIMURA = 2
-BLINN = 3
 
 #: the largest error of a piece of ``nishimura`` or ``blinn``, relative to |q| (see the module docstring)
 APPROX_TOLERANCE = 1e-12
@@ -94,7 +91,7 @@ def _apply_frame(frame, x, y, z):
 
 @njit(**NJIT_INLINE)
 def to_unit_frame(x, center, frame):
-    """x in the ball's unit frame, M (x - c), where u(x) = |M (x - c)|^2 (MODEL.md §1)."""
+    """x in the ball's unit frame, M (x - c), where u(x) = |M (x - c)|^2 (docs/model.md §1)."""
     return _apply_frame(frame, x[0] - center[0], x[1] - center[1], x[2] - center[2])
 
 
@@ -158,7 +155,7 @@ def chord(o, d, center, frame):
 def control_values(kernel, a, q, out):
     """Degree-6 Bernstein control values of q k(u(s)) on the chord, u(s) = 1 - 4 a s (1 - s) (eq. 11).
 
-    wyvill6: exact, with MODEL.md's erratum (d_3 = 8 a^2 (8a + 5) / 45, the paper drops the 8).
+    wyvill6: exact, with the erratum of docs/model.md §2.2 (d_3 = 8 a^2 (8a + 5) / 45, the paper drops the 8).
     murakami4: exactly (0, 0, 8/3 a^2, 0, 0) at degree 4 (eq. 18), elevated twice to degree 6.
     nishimura and blinn are not one polynomial per chord: see ``chord_pieces``.
     """
@@ -179,7 +176,7 @@ def control_values(kernel, a, q, out):
 
 @njit(**NJIT)
 def falloff(kernel, u, blobbiness):
-    """k(u) of MODEL.md §1 (0 for u >= 1)."""
+    """k(u) of docs/model.md §1 (0 for u >= 1)."""
     if u >= 1.0:
         return 0.0
     if kernel == WYVILL6:

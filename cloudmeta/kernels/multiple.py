@@ -1,12 +1,12 @@
 """Multiple scattering: the orders >= 2 of the light sources, and every order of the environment, by Monte
 Carlo path tracing on the exact optical depth (README, "Multiple scattering").
 
-The deterministic single-scattering renderer (kernels.radiance) already gives order 1 of every light
+The deterministic single-scattering renderer (kernels.single) already gives order 1 of every light
 exactly; these paths add what it does not count:
 
 - Free flights are sampled by inverting the exact, piecewise-polynomial optical depth of the ray (no
   majorant, no null collisions): the ray's media are cut into elementary intervals as for the camera
-  ray (radiance.elementary_intervals), the interval where the depth crosses the target is found, and the
+  ray (raywork.elementary_intervals), the interval where the depth crosses the target is found, and the
   degree-7 antiderivative is solved there (sampling.free_flight). Every flight is a *forced collision*:
   the target is drawn inside the segment's optical depth U and the path weight is multiplied by
   1 - e^-U, so no path is wasted on escaping.
@@ -28,9 +28,9 @@ Random numbers: each vertex's flight, lobe and direction come from the quasi-ran
 keyed by (seed, pixel, path, vertex), the medium and the roulette from sampling.uniform keyed by (seed, pixel,
 path, vertex, dimension): a pixel's result does not depend on any other pixel, nor on the threads.
 
-The scene is the records.SceneRecords that cloudmeta.render packs for the single-scattering renderer
+The scene is the records.SceneRecords that cloudmeta.renderer.pack packs for the single-scattering renderer
 (one packing for both estimators), the quadrature record gives the root tolerance, and one thread's
-work arrays are the camera rays' records.RayWork: the stages of kernels.radiance (the first surface
+work arrays are the camera rays' records.RayWork: the shared stages (kernels.features, media, raywork, lighting, camera: the first surface
 hit, the media on the ray, their elementary intervals, the light at a node with its shadow rays) are
 called as they are, not copied.
 """
@@ -39,14 +39,16 @@ import math
 import numpy as np
 from numba import njit
 
-from ..config import NJIT
+from .config import NJIT
 from .bernstein import bernstein_eval, bernstein_mean
 from .media import collect_media, n_media
 from .optics import phase
 from .bvh import misses_root_boxes
 from .features import surface_hit
-from .radiance import alloc_ray_work, camera_ray, elementary_intervals, light_at_node
-from .records import RayWork
+from .camera import camera_ray
+from .lighting import light_at_node
+from .raywork import alloc_ray_work, elementary_intervals
+from .records import CameraSegment, PathKey, PathVectors, RayWork
 from .sampling import free_flight, sample_phase_cos, sobol4, turn, uniform
 
 #: the independent random dimensions of one vertex (the stream's last key); the flight, the phase's lobe
@@ -133,7 +135,7 @@ def scattering_mix(k, s, rp, med, u):
 def next_event(x, d, k, s, scene, tol_t, work, out):
     """out[:3] += sum over lights of E_l T_l sum_m (sigma_s,m / sigma_t) p_m(l . d) at x (s on interval k
     of work.pieces, the ray with direction d): the light scattered once more at x, with the shadow rays
-    of the single-scattering renderer (radiance.light_at_node). Returns work."""
+    of the single-scattering renderer (lighting.light_at_node). Returns work."""
     med = scene.media
     el_sig = work.pieces.el_sig
     sigma_t = 0.0
@@ -161,14 +163,14 @@ def next_event(x, d, k, s, scene, tol_t, work, out):
 def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work, vectors, out):
     """out[:3] = one path's estimate of the radiance the deterministic renderer leaves out (orders >= 2
     of the lights, orders >= 1 of the environment) along the camera ray o_cam + t d_cam.
-    key = (seed, pixel, path); camera_segment = (its elementary intervals, their number, their optical
-    depth): trace_segment of the camera ray, traced once for all the paths that start on it; settings a
-    records.PathSettings; vectors = (o, d, d_new, light), four 3-vectors of work. Returns work, grown if a
+    key: a records.PathKey; camera_segment: a records.CameraSegment, trace_segment of the camera ray,
+    traced once for all the paths that start on it; settings a records.PathSettings; vectors a
+    records.PathVectors. Returns work, grown if a
     ray needed more room."""
-    seed, pixel, path = key
+    seed, pixel, path = key.seed, key.pixel, key.path
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
     background = scene.background
-    o, d, d_new, light = vectors
+    o, d, d_new, light = vectors.o, vectors.d, vectors.d_new, vectors.light
     for c in range(3):
         o[c] = o_cam[c]
         d[c] = d_cam[c]
@@ -179,7 +181,7 @@ def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work
         if n_vert == max_order and not has_env:
             break
         if n_vert == 0:
-            rp, n_el, u_total = camera_segment
+            rp, n_el, u_total = camera_segment.pieces, camera_segment.n_el, camera_segment.u_total
             on_surface = False  # (the environment is not counted at vertex 0)
         else:
             work, n_el, u_total, on_surface = trace_segment(o, d, scene, tol_t, work)
@@ -236,16 +238,16 @@ def _store_mean(acc, acc2, paths, i, j, mean, stderr):
 def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
     """Pixels p0 .. p1 - 1 (row by row from the start of row row0): per pixel, the mean of
     ``settings.paths`` path estimates into mean (H x W x 3), and its standard error into stderr. Path i
-    starts on camera ray i mod spp of the deterministic renderer (radiance.camera_ray), so the two add up
-    ray by ray. camera, scene, quad: the records of radiance.render_pixels. nogil, with its own work
-    arrays: cloudmeta.multiple runs bands of rows on several threads. The camera ray's own segment is
+    starts on camera ray i mod spp of the deterministic renderer (camera.camera_ray), so the two add up
+    ray by ray. camera, scene, quad: the records of single.render_pixels. nogil, with its own work
+    arrays: cloudmeta.renderer.multiple runs bands of rows on several threads. The camera ray's own segment is
     traced once per ray, into work arrays of its own, for all the paths that start on it (ray by ray:
     paths r, r + spp, r + 2 spp, ...)."""
     width, spp, paths = camera.width, camera.spp, settings.paths
     strata = int(math.ceil(math.sqrt(spp)))
     work = alloc_ray_work(scene)
     camera_work = alloc_ray_work(scene)
-    vectors = (np.empty(3), np.empty(3), np.empty(3), np.empty(3))
+    vectors = PathVectors(np.empty(3), np.empty(3), np.empty(3), np.empty(3))
     d = np.empty(3)
     est = np.empty(3)
     acc = np.empty(3)
@@ -263,9 +265,9 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
             camera_work, n_el, u_total, _ = trace_segment(camera.position, d, scene, quad.tol_t, camera_work)
             if n_el == 0:
                 continue
-            segment = (camera_work.pieces, n_el, u_total)
+            segment = CameraSegment(camera_work.pieces, n_el, u_total)
             for path in range(r, paths, spp):
-                work = path_radiance(camera.position, d, (camera.seed, i * width + j, path), segment, scene, quad,
+                work = path_radiance(camera.position, d, PathKey(camera.seed, i * width + j, path), segment, scene, quad,
                                      settings, work, vectors, est)
                 for c in range(3):
                     acc[c] += est[c]

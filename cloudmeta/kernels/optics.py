@@ -1,4 +1,4 @@
-"""Phase functions (MODEL.md §4), normalised so that their integral over the sphere is 1.
+"""Phase functions (docs/model.md §4), normalised so that their integral over the sphere is 1.
 
 cos_theta = l . d with d the camera ray direction and l towards the light: g > 0 scatters forward, so a
 cloud seen against the sun brightens.
@@ -7,12 +7,9 @@ import math
 
 from numba import njit
 
-from ..config import NJIT
+from .config import NJIT
+from .kinds import DOUBLE_HG, HG, RAYLEIGH
 
-ISOTROPIC = 0
-HG = 1
-DOUBLE_HG = 2
-RAYLEIGH = 3
 
 INV_4PI = 1.0 / (4.0 * math.pi)
 

@@ -2,7 +2,7 @@
 
 Every record is a ``collections.namedtuple`` of arrays and scalars. numba compiles them in nopython mode
 and resolves ``media.threshold[m]`` at compile time, so a record costs nothing at run time, and a new
-field shifts no index. They are built once per render by cloudmeta.pack (the scene) or by the ``alloc_*``
+field shifts no index. They are built once per render by cloudmeta.renderer.pack (the scene) or by the ``alloc_*``
 kernels (the work arrays); the kernels never build scene records. Arrays are fresh, writable and
 C-contiguous with the dtypes given here, so that numba sees one type per record and compiles once.
 
@@ -30,14 +30,14 @@ TraceOut = namedtuple("TraceOut", ["tau", "n_roots", "roots", "n_seg", "segs"])
 #: per axis, start (cells + 1,) offsets into items, the ball indices of each cell in increasing order
 CellGrid = namedtuple("CellGrid", ["origin", "size", "dims", "start", "items"])
 
-#: every medium's balls in one set of arrays (MODEL.md §4): centers (N, 3), frames (N, 3, 3),
+#: every medium's balls in one set of arrays (docs/model.md §4): centers (N, 3), frames (N, 3, 3),
 #: weights (N,), start (M + 1,) ball offsets; per medium kernel, threshold, blobbiness (blinn's b),
 #: mode (sweep.DENSITY_*), scale (sigma_t = scale * rho), albedo, phase (M, 4) = kind, g1, g2, w
 #: (kernels.optics); bvh a BVH
 Media = namedtuple("Media", ["centers", "frames", "weights", "start", "kernel", "threshold", "blobbiness",
                              "mode", "scale", "albedo", "phase", "bvh"])
 
-#: every opaque surface's balls (MODEL.md §6): as Media, with colour (S, 3) linear RGB in place of the
+#: every opaque surface's balls (docs/model.md §6): as Media, with colour (S, 3) linear RGB in place of the
 #: density and scattering parameters
 Surfaces = namedtuple("Surfaces", ["centers", "frames", "weights", "start", "kernel", "threshold",
                                    "blobbiness", "colour", "bvh"])
@@ -52,7 +52,7 @@ ShadowMaps = namedtuple("ShadowMaps", ["map_of", "geo", "res", "base", "start", 
 #: per piece t0, t1, c (P, C) sigma_t, cum, reach, as in ShadowMaps
 MapPieces = namedtuple("MapPieces", ["t0", "t1", "c", "cum", "reach"])
 
-#: the lights (MODEL.md §5): kind (L,) radiance.DIRECTIONAL or POINT; vec (L, 3) the direction towards a
+#: the lights (docs/model.md §5): kind (L,) kinds.DIRECTIONAL or POINT; vec (L, 3) the direction towards a
 #: directional light, or a point light's position; rgb (L, 3) irradiance or intensity; maps ShadowMaps, or
 #: None in a scene with neither shadow maps nor surfaces (kernels.features)
 Lights = namedtuple("Lights", ["kind", "vec", "rgb", "maps"])
@@ -61,17 +61,17 @@ Lights = namedtuple("Lights", ["kind", "vec", "rgb", "maps"])
 #: then compile without the surface code, kernels.features), Lights, and the background and ambient radiance (3,)
 SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient"])
 
-#: the in-scattering quadrature (cloudmeta.pack.quadrature): the step rule, 7 Gauss and 15 Kronrod nodes
+#: the in-scattering quadrature (cloudmeta.renderer.pack.quadrature): the step rule, 7 Gauss and 15 Kronrod nodes
 #: on [0, 1] with their Lagrange bases at a fine Gauss rule (fine_y, fine_w); where the Gauss nodes and
 #: the other 8 sit among the 15 (gauss_col, kronrod_col); tail (2, 7) maps J at the Gauss nodes to its two
-#: highest Legendre coefficients. Then the render's quality settings (cloudmeta.render.resolve_quality):
+#: highest Legendre coefficients. Then the render's quality settings (cloudmeta.renderer.quality.resolve_quality):
 #: max_tau, max_length, max_angle, cutoff, u_stop = -log(cutoff) (the view optical depth past which
 #: nothing is shaded; inf for cutoff 0), tol_t (the root tolerance on t, absolute), tolerance
 Quadrature = namedtuple("Quadrature", ["gauss_x", "gauss_lag", "kronrod_x", "kronrod_lag", "gauss_col",
                                        "kronrod_col", "tail", "fine_y", "fine_w", "max_tau", "max_length",
                                        "max_angle", "cutoff", "u_stop", "tol_t", "tolerance"])
 
-#: a pinhole camera (MODEL.md §8): position, forward, and right / up scaled to the image plane's
+#: a pinhole camera (docs/model.md §8): position, forward, and right / up scaled to the image plane's
 #: half-extent at distance 1 (3,) each; the image size, samples per pixel and the jitter seed
 Camera = namedtuple("Camera", ["position", "forward", "right", "up", "width", "height", "spp", "seed"])
 
@@ -90,7 +90,7 @@ SweepScratch = namedtuple("SweepScratch", ["chord_t0", "chord_t1", "chord_c", "b
 RayPieces = namedtuple("RayPieces", ["t0", "t1", "c", "medium", "bp", "order", "act", "el_t0", "el_t1", "el_u0",
                                      "el_S", "el_sig"])
 
-#: small per-ray work vectors of the radiance kernels (kernels.radiance.alloc_node_work): light (L, 4) =
+#: small per-ray work vectors of the radiance kernels (kernels.raywork.alloc_node_work): light (L, 4) =
 #: per light l . v and E_l T_l (r, g, b) at the current node; pos and l_dir at a node; x, normal and
 #: x_off (x lifted off the surface) at a surface hit; node_w the product-integration weights of a step;
 #: j_val (3, nodes) J at the nodes of a step; split_u and split_depth the parts of a step still to do
@@ -100,6 +100,24 @@ NodeWork = namedtuple("NodeWork", ["light", "pos", "l_dir", "x", "normal", "x_of
 #: everything one thread's camera rays reuse: SweepScratch (grows), RayPieces (grows), the BVH's
 #: candidate list and walk stack, NodeWork
 RayWork = namedtuple("RayWork", ["scratch", "pieces", "cand", "stack", "nodes"])
+
+#: the in-scattering quadrature's state along one camera ray (kernels.single.step_in_scattering): the
+#: cursor of the last node (interval k, its point s_prev, the view optical depth u_prev there), the
+#: largest J (r + g + b) met on the ray so far (the scale of the tolerance), and the sweep scratch (which a
+#: shadow ray may grow)
+StepState = namedtuple("StepState", ["k", "s_prev", "u_prev", "j_max", "scratch"])
+
+#: the key of a path's random numbers (kernels.sampling.sobol4, uniform): the render's seed, the pixel and
+#: the path's index in it
+PathKey = namedtuple("PathKey", ["seed", "pixel", "path"])
+
+#: a path's four 3-vectors of work (kernels.multiple.path_radiance): the vertex o, the direction d, the
+#: sampled next direction d_new, the light scattered at a vertex
+PathVectors = namedtuple("PathVectors", ["o", "d", "d_new", "light"])
+
+#: the camera ray's segment, traced once for all the paths that start on it (kernels.multiple): its
+#: RayPieces with the elementary intervals, their number n_el and the optical depth u_total of them all
+CameraSegment = namedtuple("CameraSegment", ["pieces", "n_el", "u_total"])
 
 #: the multiple-scattering paths (kernels.multiple): the highest scattering order, the vertex from which
 #: Russian roulette plays, and the paths per pixel

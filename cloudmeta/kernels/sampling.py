@@ -3,7 +3,7 @@
 - ``uniform``: a counter-based stream: the number for (seed, pixel, sample, order, dim) is a hash of
   those integers alone (splitmix64's finaliser, chained), so a render does not depend on the order in
   which threads take pixels, nor on their number.
-- ``sample_phase_cos``: cos theta of a new direction drawn exactly from each phase function of MODEL.md §4
+- ``sample_phase_cos``: cos theta of a new direction drawn exactly from each phase function of docs/model.md §4
   (HG by inversion of its CDF, double HG by its lobe, Rayleigh by the real root of its CDF's cubic,
   isotropic), with cos theta = d' . d, d the incoming propagation direction (so g > 0 keeps going forward).
 - ``sobol4``: four numbers of the randomised quasi-Monte Carlo stream for (seed, pixel, path, block): the
@@ -20,9 +20,9 @@ import math
 import numpy as np
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
 from .bernstein import bernstein_cumulative, bernstein_eval
-from .optics import DOUBLE_HG, HG, RAYLEIGH
+from .kinds import DOUBLE_HG, HG, RAYLEIGH
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M32 = np.uint64(0xFFFFFFFF)

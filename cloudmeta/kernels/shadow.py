@@ -12,16 +12,17 @@ about one that straddles T. Here each of composite's intervals is classed by its
   class at the interval's start is that of F there), the inside parts integrated by the antiderivative
   (a degree-7 Bernstein polynomial).
 
-The integral of rho is affine in that of F (MODEL.md §4), so all three density modes come from the
+The integral of rho is affine in that of F (docs/model.md §4), so all three density modes come from the
 integral of F and the inside length. The same polynomials and roots as the full sweep, summed in another
-order: the depth agrees to rounding (tests/test_kernels_shadow.py).
+order: the depth agrees to rounding (tests/kernels/test_shadow.py).
 """
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF, bernstein_cumulative
 from .clipping import clip_roots
-from .sweep import DENSITY_EXCESS, DENSITY_UNIFORM, NOISE, alloc_scratch, capacity_of, composite, gather_chords
+from .density import rho_integral
+from .sweep import NOISE, alloc_scratch, capacity_of, composite, gather_chords
 
 
 @njit(**NJIT_INLINE)
@@ -58,16 +59,6 @@ def straddling_interval(w, threshold, tol_t, mag, scratch):
     return w * f_int, w * span
 
 
-@njit(**NJIT_INLINE)
-def rho_integral(f_int, length, mode, threshold):
-    """int rho over the inside parts from int F and their length (rho is affine in F, MODEL.md §4)."""
-    if mode == DENSITY_UNIFORM:
-        return length
-    if mode == DENSITY_EXCESS:
-        return f_int - threshold * length
-    return f_int
-
-
 @njit(**NJIT)
 def intervals_depth(n_iv, threshold, mode, tol_t, scratch):
     """int rho over {F >= T} on the n_iv composite intervals in the scratch (``composite``'s), rho by density
@@ -102,7 +93,7 @@ def intervals_depth(n_iv, threshold, mode, tol_t, scratch):
 @njit(**NJIT)
 def column_density(o, d, tmin, tmax, blob, mode, tol_t, cand, n_cand, scratch):
     """The integral of rho over {F >= T} along the ray within [tmin, tmax] through ``blob`` (its balls
-    cand[:n_cand]), rho by density ``mode`` (MODEL.md §4): the optical depth over the medium's scale.
+    cand[:n_cand]), rho by density ``mode`` (docs/model.md §4): the optical depth over the medium's scale.
     Grows the scratch when the ray meets more chords than it holds. Returns (scratch, the integral)."""
     n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p > capacity_of(scratch):

@@ -6,7 +6,7 @@ medium and the map keeps its inside pieces: sigma_t as Bernstein control values 
 running sum of their exact integrals. The optical depth towards the light at depth s on a texel's ray is
 therefore exact in depth; across texels it is interpolated bilinearly.
 
-The maps are one records.ShadowMaps (cloudmeta.pack.build_shadow_maps). One map's arrays: geo (13,) =
+The maps are one records.ShadowMaps (cloudmeta.renderer.pack.build_shadow_maps). One map's arrays: geo (13,) =
 origin (3), e1 (3), e2 (3), ray direction -l (3), texel size; res (texels per side); start (res^2 + 1,)
 offsets of each texel's pieces; t0, t1 (P,), c (P, 7) sigma_t, cum (P,) the running integral within the
 texel, reach (P,) the running max of t1 within the texel. Several maps are concatenated (``base`` gives
@@ -15,7 +15,7 @@ each map's first texel, ``start`` holds global piece offsets).
 import numpy as np
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
 from .bernstein import bernstein_cumulative, bernstein_mean
 from .media import alloc_ray_pieces, collect_media
 from .sweep import alloc_scratch, insertion_argsort
@@ -33,7 +33,7 @@ def trace_texel_chunk(geo, res, med, tol_t, chunk, n_chunks, cap, counts, used, 
     after texel, to rows [chunk * cap, chunk * cap + used[chunk]) of ``rows`` (a records.MapPieces);
     counts[k] is the number of pieces of texel k. Every piece is counted even past cap, so used[chunk] >
     cap tells the caller to call again with a larger cap (the chunk's rows are then incomplete). nogil,
-    with its own work arrays: cloudmeta.pack runs the chunks on several threads."""
+    with its own work arrays: cloudmeta.renderer.pack runs the chunks on several threads."""
     n = res * res
     scratch = alloc_scratch(np.int64(64))
     rp = alloc_ray_pieces(np.int64(64), med.start.shape[0] - 1)

@@ -1,4 +1,4 @@
-"""Single scattering along camera rays (MODEL.md §5), opaque surfaces on them (§6), and the image loop.
+"""Single scattering along camera rays (docs/model.md §5), opaque surfaces on them (§6), and the image loop.
 
 The seam: estimators
 --------------------
@@ -61,21 +61,18 @@ from numba import njit
 from numba.core import types
 from numba.extending import overload
 
-from ..config import NJIT, NJIT_INLINE, OVERLOAD
-from .bernstein import NCOEF, bernstein_cumulative, bernstein_eval, bernstein_mean, subdivide
-from .bvh import STACK, misses_root_boxes
-from .features import light_map, map_transmittance, misses_surfaces, surface_balls, surface_hit, surfaces_blocking
-from .media import alloc_ray_pieces, collect_media, n_media, shadow_transmittance
+from .config import NJIT, NJIT_INLINE, OVERLOAD
+from .bernstein import bernstein_cumulative, bernstein_eval
+from .bvh import misses_root_boxes
+from .camera import background_sample, camera_ray
+from .features import misses_surfaces, surface_hit
+from .lighting import angular_cuts, light_at_node
+from .media import collect_media
 from .optics import phase
-from .records import NodeWork, RayWork
-from .sampling import mix64
+from .records import RayWork, StepState
+from .raywork import alloc_ray_work, depth_at, elementary_intervals
 from .surfaces import SHADOW_OFFSET, surface_normal
-from .sweep import advance_active, alloc_scratch, sort_breakpoints
 
-DIRECTIONAL = 0
-POINT = 1
-#: most nodes per step (the work rows are sized by it)
-MAX_NODES = 16
 #: a step is halved at most this often where its Kronrod and Gauss results disagree (the pending halves
 #: fit the MAX_NODES slots of a work row)
 MAX_SPLITS = 6
@@ -121,138 +118,6 @@ def _exp_weights(h, lagrange, fine_y, fine_w, out):
             out[k] += e * lagrange[k, q]
     for k in range(lagrange.shape[0]):
         out[k] *= h
-
-
-@njit(**NJIT)
-def _angular_cuts(o, d, ta, tb, light_kind, light_vec, max_angle, tol_t):
-    """Equal-angle cuts of [ta, tb] as seen from the point light that sees it under the widest angle:
-    returns (n_sub, t_c, h, theta_a, d_theta), t = t_c + h tan(theta); n_sub = 1 without point lights."""
-    best = 1
-    t_c = 0.0
-    h_best = 1.0
-    th_a = 0.0
-    d_th = 0.0
-    for li in range(light_kind.shape[0]):
-        if light_kind[li] == DIRECTIONAL:
-            continue
-        tc = 0.0
-        for c in range(3):
-            tc += (light_vec[li, c] - o[c]) * d[c]
-        h2 = 0.0
-        for c in range(3):
-            q = o[c] + tc * d[c] - light_vec[li, c]
-            h2 += q * q
-        h = max(math.sqrt(h2), tol_t)
-        a = math.atan((ta - tc) / h)
-        b = math.atan((tb - tc) / h)
-        n = int(math.ceil((b - a) / max_angle))
-        if n > best:
-            best = n
-            t_c = tc
-            h_best = h
-            th_a = a
-            d_th = (b - a) / n
-    return best, t_c, h_best, th_a, d_th
-
-
-#: inlined: a call per quadrature node would count references to every array of med, surf and lights
-#: inlined: a call per quadrature node would count references to every array of the scene records
-@njit(**NJIT_INLINE)
-def light_at_node(pos, shadow_from, v, facing_only, tau_stop, scene, tol_t, scratch, work):
-    """Per light: work.nodes.light[li, 0] = l . v, [li, 1:4] = E_l T_l at pos. v is the view direction
-    at a medium's node (l . v = cos theta of the phase function), the normal at a surface point; with
-    facing_only, lights with l . v <= 0 get E_l T_l = 0 and no shadow ray (they cannot light the side of
-    a surface facing away). The shadow ray starts at shadow_from (pos, or a surface point lifted off its
-    surface) and runs along l; it stops counting once its optical depth exceeds tau_stop. Returns scratch."""
-    lights = scene.lights
-    surf = scene.surfaces
-    l_dir = work.nodes.l_dir
-    light_buf = work.nodes.light
-    for li in range(lights.kind.shape[0]):
-        if lights.kind[li] == DIRECTIONAL:
-            for c in range(3):
-                l_dir[c] = lights.vec[li, c]
-            e_scale = 1.0
-            l_max = np.inf
-        else:
-            for c in range(3):
-                l_dir[c] = lights.vec[li, c] - pos[c]
-            dist2 = l_dir[0] * l_dir[0] + l_dir[1] * l_dir[1] + l_dir[2] * l_dir[2]
-            l_max = math.sqrt(dist2)
-            for c in range(3):
-                l_dir[c] /= l_max
-            e_scale = 1.0 / dist2
-        cos_lv = l_dir[0] * v[0] + l_dir[1] * v[1] + l_dir[2] * v[2]
-        light_buf[li, 0] = cos_lv
-        if facing_only and cos_lv <= 0.0:
-            for c in range(3):
-                light_buf[li, 1 + c] = 0.0
-            continue
-        scratch, blocked = surfaces_blocking(shadow_from, l_dir, l_max, surf, tol_t, scratch, work)
-        mi = light_map(lights.maps, li)
-        if blocked:
-            t_l = 0.0
-        elif mi >= 0:
-            t_l = map_transmittance(shadow_from, lights.maps, mi)
-        else:
-            scratch, t_l = shadow_transmittance(shadow_from, l_dir, l_max, scene.media, tol_t, tau_stop, scratch,
-                                                work.cand, work.stack)
-        for c in range(3):
-            light_buf[li, 1 + c] = lights.rgb[li, c] * e_scale * t_l
-    return scratch
-
-
-@njit(**NJIT)
-def elementary_intervals(n, rp):
-    """Cut the ray at every piece end of rp (a records.RayPieces); per interval, sigma_t of each medium
-    and of all, and the optical depth from the ray's start. Returns the number of intervals."""
-    sort_breakpoints(rp.t0, rp.t1, n, rp.bp, rp.order)
-    n_act = 0
-    i_s = 0
-    n_el = 0
-    rp.el_u0[0] = 0.0
-    for k in range(2 * n - 1):
-        ta = rp.bp[k]
-        tb = rp.bp[k + 1]
-        if tb <= ta:
-            continue
-        n_act, i_s = advance_active(ta, rp.t0, rp.t1, rp.order, rp.act, n_act, i_s, n)
-        if n_act == 0:
-            continue
-        _interval_sigma(rp, n_el, n_act, ta, tb)
-        rp.el_t0[n_el] = ta
-        rp.el_t1[n_el] = tb
-        rp.el_u0[n_el + 1] = rp.el_u0[n_el] + (tb - ta) * bernstein_mean(rp.el_S[n_el])
-        n_el += 1
-    return n_el
-
-
-@njit(**NJIT_INLINE)
-def _interval_sigma(rp, n_el, n_act, ta, tb):
-    """el_sig[n_el, m] = sigma_t of medium m on [ta, tb], el_S[n_el] = their sum, from the active pieces."""
-    el_S = rp.el_S[n_el]
-    el_S[:] = 0.0
-    rp.el_sig[n_el, :, :] = 0.0
-    for q in range(n_act):
-        i = rp.act[q]
-        span = rp.t1[i] - rp.t0[i]
-        s0 = min(max((ta - rp.t0[i]) / span, 0.0), 1.0)
-        s1 = min(max((tb - rp.t0[i]) / span, 0.0), 1.0)
-        sig = rp.el_sig[n_el, rp.medium[i]]
-        subdivide(rp.c[i], s0, s1, sig)  # pieces of one medium never overlap
-        for c in range(NCOEF):
-            el_S[c] += sig[c]
-
-
-@njit(**NJIT)
-def _depth_at(t, k, n_el, rp):
-    """(optical depth at t, the interval holding t), searching forward from interval k."""
-    el_t0, el_t1, el_u0, el_S = rp.el_t0, rp.el_t1, rp.el_u0, rp.el_S
-    while k < n_el - 1 and el_t1[k] <= t:
-        k += 1
-    w = el_t1[k] - el_t0[k]
-    s = min(max((t - el_t0[k]) / w, 0.0), 1.0)
-    return el_u0[k] + w * bernstein_cumulative(el_S[k], s), k
 
 
 @njit(**NJIT_INLINE)
@@ -304,9 +169,9 @@ def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
     nodes; where the tail of their Legendre expansion says J is rougher than the tolerance allows, the 8
     Kronrod nodes join them (15, the 7 reused); where the two rules still disagree the step is halved
     (at most MAX_SPLITS times), left half first, so that the nodes come in increasing u. Parts seen
-    through less than ``cutoff`` are dropped. state = (k, s_prev, u_prev, j_max): source_at's cursor and
-    the largest J (r + g + b) met on this ray, the scale of the tolerance. Returns (work, state)."""
-    k, s_prev, u_prev, j_max, scratch = state
+    through less than ``cutoff`` are dropped. state: a records.StepState. Returns the state after the
+    step."""
+    k, s_prev, u_prev, j_max, scratch = state.k, state.s_prev, state.u_prev, state.j_max, state.scratch
     nodes = work.nodes
     node_w, j_val, split_u, split_depth = nodes.node_w, nodes.j_val, nodes.split_u, nodes.split_depth
     gauss_col, kronrod_col, kronrod_x, tail = quad.gauss_col, quad.kronrod_col, quad.kronrod_x, quad.tail
@@ -367,7 +232,7 @@ def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
         for g in range(kronrod_x.shape[0]):
             for c in range(3):
                 out[c] += e0 * node_w[g] * j_val[c, g]
-    return (k, s_prev, u_prev, j_max, scratch)
+    return StepState(k, s_prev, u_prev, j_max, scratch)
 
 
 @njit(**NJIT_INLINE)
@@ -399,9 +264,9 @@ def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out, scratch
     tb = rp.el_t1[k_b - 1]
     # near a point light E ~ 1/r^2 peaks: cut at equal angles seen from the light that sees the segment
     # under the widest angle (t = t_c + h tan(theta) makes dt / r^2 = d(theta) / h)
-    n_sub, t_c, h_l, th_a, d_th = _angular_cuts(o, d, ta, tb, scene.lights.kind, scene.lights.vec, quad.max_angle,
+    n_sub, t_c, h_l, th_a, d_th = angular_cuts(o, d, ta, tb, scene.lights.kind, scene.lights.vec, quad.max_angle,
                                                 quad.tol_t)
-    state = (k_a, 0.0, rp.el_u0[k_a], j_max, scratch)
+    state = StepState(k_a, 0.0, rp.el_u0[k_a], j_max, scratch)
     u_end = rp.el_u0[k_a]
     t_end = ta
     for sub in range(n_sub):
@@ -412,7 +277,7 @@ def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out, scratch
             u_end = rp.el_u0[k_b]
         else:
             t_end = t_c + h_l * math.tan(th_a + (sub + 1) * d_th)
-            u_end, _ = _depth_at(t_end, state[0], k_b, rp)
+            u_end, _ = depth_at(t_end, state.k, k_b, rp)
         sub_u = u_end - u_start
         if sub_u <= 0.0:
             continue
@@ -422,7 +287,7 @@ def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out, scratch
         h = sub_u / n_steps
         for st in range(n_steps):
             state = step_in_scattering(o, d, u_start + st * h, h, k_b, state, scene, quad, work, out)
-    return state[4], state[3]
+    return state.scratch, state.j_max
 
 
 @njit(**NJIT_INLINE)
@@ -464,7 +329,7 @@ def in_scattering(o, d, n_el, scene, quad, work, out):
 
 @njit(**NJIT)
 def shade_surface(o, d, t_hit, s, scene, quad, scratch, work):
-    """Lambertian radiance of surface s hit at o + t_hit d (MODEL.md §6):
+    """Lambertian radiance of surface s hit at o + t_hit d (docs/model.md §6):
     colour / pi * sum_lights max(0, n . l) E_l T_l + colour * L_amb. Returns (scratch, r, g, b)."""
     nodes = work.nodes
     x, nrm, x_off = nodes.x, nodes.normal, nodes.x_off
@@ -529,7 +394,7 @@ def ray_end(o, d, t_hit, s_hit, u_total, scene, quad, work, out):
 
 @njit(**NJIT_INLINE)
 def single_scattering(o, d, scene, quad, work, out):
-    """The single-scattering estimator (MODEL.md §5-6) of the camera ray o + t d: out[:3] = its radiance,
+    """The single-scattering estimator (docs/model.md §5-6) of the camera ray o + t d: out[:3] = its radiance,
     out[3] = its transmittance T(0, t_end) (0 where it meets a surface), out[4] = t_hit, where it first
     meets a surface (inf if it does not). Returns work, grown if this ray needed more room."""
     scratch, t_hit, s_hit = surface_hit(o, d, scene.surfaces, quad.tol_t, work)
@@ -551,59 +416,10 @@ def single_scattering(o, d, scene, quad, work, out):
 
 
 @njit(**NJIT)
-def jitter(seed, pixel, sample, dim):
-    key = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(pixel) * np.uint64(0x632BE59BD9B4E019)
-           + np.uint64(sample) * np.uint64(0x85EBCA77C2B2AE63) + np.uint64(dim))
-    # a counter-based hash, so jitter depends only on (pixel, sample)
-    return float(mix64(key) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-
-
-@njit(**NJIT)
-def alloc_node_work(n_lights):
-    """The small per-ray work vectors of the radiance kernels (a records.NodeWork)."""
-    return NodeWork(light=np.empty((n_lights, 4)), pos=np.empty(3), l_dir=np.empty(3), x=np.empty(3),
-                    normal=np.empty(3), x_off=np.empty(3), node_w=np.empty(MAX_NODES),
-                    j_val=np.empty((3, MAX_NODES)), split_u=np.empty(MAX_NODES), split_depth=np.empty(MAX_NODES))
-
-
-@njit(**NJIT)
-def alloc_ray_work(scene):
-    """One thread's work arrays for camera rays (a records.RayWork): the sweep scratch and ray pieces
-    (both grow when a ray needs more), the candidate list (room for the most balls of media or of
-    surfaces), the BVH stack and the node work vectors."""
-    n_balls = max(scene.media.centers.shape[0], surface_balls(scene.surfaces))
-    # np.int64: the literal 64 would compile both allocators once more for Literal[int](64)
-    return RayWork(alloc_scratch(np.int64(64)), alloc_ray_pieces(np.int64(64), n_media(scene.media)),
-                   np.empty(max(n_balls, 1), np.int64), np.empty(2 * STACK, np.int64),
-                   alloc_node_work(scene.lights.kind.shape[0]))
-
-
-@njit(**NJIT_INLINE)
-def camera_ray(camera, i, j, s, strata, d):
-    """d = the unit direction of sample s of pixel (i, j) (MODEL.md §8): the pixel centre with spp = 1,
-    else a jittered point of its stratum on a strata x strata grid."""
-    width, height, spp = camera.width, camera.height, camera.spp
-    if spp == 1:
-        jx = 0.5
-        jy = 0.5
-    else:
-        pix = i * width + j
-        jx = ((s % strata) + jitter(camera.seed, pix, s, np.int64(0))) / strata
-        jy = (((s // strata) % strata) + jitter(camera.seed, pix, s, np.int64(1))) / strata
-    x = 2.0 * (j + jx) / width - 1.0
-    y = 1.0 - 2.0 * (i + jy) / height
-    for c in range(3):
-        d[c] = camera.forward[c] + x * camera.right[c] + y * camera.up[c]
-    norm = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    for c in range(3):
-        d[c] /= norm
-
-
-@njit(**NJIT)
 def render_pixels(camera, scene, quad, row0, p0, p1, image, depth):
     """Pixels p0 .. p1 - 1, counted row by row from the start of row row0, into image (H x W x 4, row 0
     at the top) and depth (H x W: per pixel, the nearest surface hit t over its samples, inf where none
-    hits), with their own work arrays. nogil: cloudmeta.render runs bands of rows on several threads.
+    hits), with their own work arrays. nogil: cloudmeta.renderer.single runs bands of rows on several threads.
 
     camera: a records.Camera (right and up scaled to the half-extent of the image plane at distance 1);
     scene: a records.SceneRecords; quad: a records.Quadrature. With spp > 1 the samples are stratified
@@ -627,7 +443,7 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth):
             camera_ray(camera, i, j, s, strata, d)
             if misses_root_boxes(camera.position, d, scene.media.bvh) and misses_surfaces(camera.position, d,
                                                                                            scene.surfaces):
-                _background_sample(scene.background, px_out)  # nothing on the ray: the background, at once
+                background_sample(scene.background, px_out)  # nothing on the ray: the background, at once
             else:
                 work = single_scattering(camera.position, d, scene, quad, work, px_out)
             acc0 += px_out[0]
@@ -642,9 +458,3 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth):
         image[i, j, 3] = 1.0 - acc3 / spp  # alpha = 1 - T(0, t_end)
 
 
-@njit(**NJIT_INLINE)
-def _background_sample(background, out):
-    for c in range(3):
-        out[c] = background[c]
-    out[3] = 1.0
-    out[4] = np.inf

@@ -1,18 +1,18 @@
-"""Opaque metaball surfaces (MODEL.md §6) along one ray: where a camera ray first meets one, whether a
+"""Opaque metaball surfaces (docs/model.md §6) along one ray: where a camera ray first meets one, whether a
 shadow ray is blocked, and the normal at a hit.
 
 Each surface is its own blob, drawn as its isosurface F = T: the fields of two surfaces do not add. An
 opaque surface needs only the first root of each blob, never the segments after it: sweep.first_inside
 walks the ray's intervals in order and stops at the first entry (camera rays) or the first blocker (shadow
 rays), with the answer of the full sweep (sweep.first_entry) bit for bit.
-The surfaces are one records.Surfaces (cloudmeta.pack.pack_surfaces).
+The surfaces are one records.Surfaces (cloudmeta.renderer.pack.pack_surfaces).
 """
 import math
 
 import numpy as np
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE
 from .bvh import bvh_candidates, bvh_point_candidates
 from .metaball import gradient_sum
 from .records import BlobRecord
@@ -74,7 +74,7 @@ def surfaces_block(x, l, tmax, surf, tol_t, scratch, cand, stack):
 
 @njit(**NJIT)
 def surface_normal(x, d, surf, s, cand, stack, n_out):
-    """n = -grad F / |grad F| of surface s at x (the analytic gradient, MODEL.md §6), into n_out; where the
+    """n = -grad F / |grad F| of surface s at x (the analytic gradient, docs/model.md §6), into n_out; where the
     gradient vanishes (a camera inside a surface, at a critical point) n = -d, facing the viewer."""
     n_cand = bvh_point_candidates(x, surf.bvh, surf.bvh.root[s], stack, cand)
     gx, gy, gz = gradient_sum(x, surface_blob(surf, s), cand, 0, n_cand)

@@ -2,7 +2,7 @@
 
 The ray's field is piecewise: between consecutive chord ends the set of balls on the ray is fixed, and
 the field there is one degree-6 Bernstein polynomial, the sum of each ball's curve cut to the interval
-(MODEL.md §2). Inside pieces are the parts of those intervals where F >= T, each carrying F's control
+(docs/model.md §2). Inside pieces are the parts of those intervals where F >= T, each carrying F's control
 values on itself, so every later integral is exact.
 
 Scratch arrays come from ``alloc_scratch`` and are reused ray after ray; ``capacity`` is the most chords
@@ -11,8 +11,9 @@ one ray may meet before the caller must allocate a larger scratch.
 import numpy as np
 from numba import njit
 
-from ..config import NJIT, NJIT_INLINE
-from .bernstein import NCOEF, _casteljau_rows, bernstein_mean, subdivide
+from .config import NJIT, NJIT_INLINE
+from .bernstein import NCOEF, _casteljau_rows, subdivide
+from .density import density_mean
 from .clipping import STACK_DEPTH, clip_roots
 from .records import SweepScratch
 from .metaball import (DONE, MIDDLE, PAIR, chord, control_values, is_piecewise, keep_piece, next_piece,
@@ -25,9 +26,6 @@ ROOTS_PER_INTERVAL = 8
 #: |g| below NOISE * (T + sum of |control values|) is rounding noise (a touch, not a segment)
 NOISE = 64.0 * 2.220446049250313e-16
 
-DENSITY_FIELD = 0
-DENSITY_EXCESS = 1
-DENSITY_UNIFORM = 2
 
 
 @njit(**NJIT)
@@ -406,25 +404,6 @@ def _emit(c, ta, tb, s0, s1, o_t0, o_t1, o_c, n_out):
     o_t0[n_out] = ta + s0 * (tb - ta) if s0 > 0.0 else ta
     o_t1[n_out] = ta + s1 * (tb - ta) if s1 < 1.0 else tb
     subdivide(c, s0, s1, o_c[n_out])
-
-
-@njit(**NJIT_INLINE)
-def rho_value(f, mode, threshold):
-    """rho where the field is f, inside (F >= T): the density modes of MODEL.md §4, in one place. Applied
-    to a piece's control values it gives rho's, to their mean rho's mean (rho is affine in F)."""
-    if mode == DENSITY_UNIFORM:
-        return 1.0
-    if mode == DENSITY_EXCESS:
-        return f - threshold
-    return f
-
-
-@njit(**NJIT)
-def density_mean(c, mode, threshold):
-    """Mean of rho over a piece whose field has control values c."""
-    if mode == DENSITY_UNIFORM:
-        return 1.0
-    return rho_value(bernstein_mean(c), mode, threshold)
 
 
 @njit(**NJIT)

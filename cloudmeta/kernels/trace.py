@@ -4,7 +4,7 @@ not depend on the number of threads."""
 import numpy as np
 from numba import njit, prange
 
-from ..config import NJIT_INLINE, NJIT_PARALLEL
+from .config import NJIT_INLINE, NJIT_PARALLEL
 from .metaball import field_sum, gradient_sum
 from .bvh import STACK, bvh_candidates
 from .records import BVH, BlobRecord

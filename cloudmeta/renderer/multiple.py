@@ -1,12 +1,12 @@
 """Multiple scattering (``render: {scattering: multiple}``): the Monte Carlo part of the image.
 
 Order 1 of every light stays the deterministic single-scattering renderer's (exact shadows, the
-quadrature of cloudmeta.render); ``render_multiple`` adds, by path tracing on the exact optical depth
+quadrature of cloudmeta.renderer.single); ``render_multiple`` adds, by path tracing on the exact optical depth
 (cloudmeta.kernels.multiple), the orders 2 .. ``max_order`` of the lights and the orders 1 .. ``max_order``
 of the environment, the scene's uniform ``background``. It returns the per-pixel mean and its standard
 error, so every multiple-scattering image comes with its own error estimate.
 
-Both estimators read one packing of the scene (cloudmeta.render.pack_scene); with ``shadows: map`` the
+Both estimators read one packing of the scene (cloudmeta.renderer.pack.pack_scene); with ``shadows: map`` the
 paths' next-event shadow rays read the same maps as the single-scattering renderer.
 
 ``ambient`` is refused in multiple mode: the background already lights the medium at every order, and
@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import SceneError
-from .kernels.multiple import render_paths
-from .kernels.records import PathSettings
-from .render import _window, pack_scene, run_bands
+from ..errors import SceneError
+from ..kernels.multiple import render_paths
+from ..kernels.records import PathSettings
+from .bands import run_bands, tile_window
+from .pack import pack_scene
 
 #: Russian roulette from this vertex on (the first vertices carry most of the light: keep them all)
 RR_ORDER = 4
@@ -39,14 +40,15 @@ def render_multiple(scene, paths=None, max_order=None, seed=0, progress=False, r
     the deterministic renderer leaves out (orders >= 2 of the lights, >= 1 of the environment), up to
     ``max_order`` (default ``render.max_order``); stderr its standard error per pixel and channel (inf
     with one path). Bit-identical for any number of threads. ``rows`` and ``columns`` as in
-    cloudmeta.render.render (a tile: the same numbers as those pixels of the whole frame); ``packed``:
-    render's (camera, records, quadrature) of the same scene and seed, so the scene is packed once."""
+    cloudmeta.renderer.render (a tile: the same numbers as those pixels of the whole frame); ``packed``:
+    the render's pack.Packed of the same scene and seed, so the scene is packed once."""
     check_multiple(scene)
     paths = scene.render.ms_spp if paths is None else int(paths)
     max_order = scene.render.max_order if max_order is None else int(max_order)
-    window = _window(rows, scene.image.height, "rows"), _window(columns, scene.image.width, "columns")
-    camera, records, quad = pack_scene(scene, seed) if packed is None else packed
-    settings = PathSettings(int(max_order), RR_ORDER, int(paths))
+    window = tile_window(rows, scene.image.height, "rows"), tile_window(columns, scene.image.width, "columns")
+    packed = pack_scene(scene, seed) if packed is None else packed
+    camera, records, quad = packed.camera, packed.records, packed.quadrature
+    settings = PathSettings(max_order=int(max_order), rr_order=RR_ORDER, paths=int(paths))
     w, h = scene.image.width, scene.image.height
     mean = np.zeros((h, w, 3))
     stderr = np.zeros((h, w, 3))
@@ -56,12 +58,3 @@ def render_multiple(scene, paths=None, max_order=None, seed=0, progress=False, r
               window, w, progress)
     (r_lo, r_hi), (c_lo, c_hi) = window
     return mean[r_lo:r_hi, c_lo:c_hi], stderr[r_lo:r_hi, c_lo:c_hi]
-
-
-def add_multiple(scene, image, seed=0, progress=False, rows=None, columns=None, packed=None):
-    """The render hook: image (the tile's H x W x 4, the deterministic part) with the Monte Carlo part of
-    the same pixels added to its RGB. Returns (image, stderr)."""
-    mean, stderr = render_multiple(scene, seed=seed, progress=progress, rows=rows, columns=columns,
-                                   packed=packed)
-    image[..., :3] += mean
-    return image, stderr

@@ -10,20 +10,20 @@ gets None for both (kernels.features): the kernels then compile a second, smalle
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
 
-from .engine import DENSITY_MODES, n_chunks
-from .kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
-from .kernels.radiance import DIRECTIONAL, POINT
-from .kernels.records import (BVH, Camera, Lights, MapPieces, Media, Quadrature, SceneRecords, ShadowMaps,
-                              Surfaces)
-from .kernels.shadowmap import trace_texel_chunk
-from .scene import DirectionalLight
+from ..kernels.kinds import DENSITY_MODES, LIGHTS, PHASES
+from ..kernels.records import (BVH, Camera, Lights, MapPieces, Media, Quadrature, SceneRecords, ShadowMaps,
+                               Surfaces)
+from ..kernels.shadowmap import trace_texel_chunk
+from ..scene.vocabulary import SHADOW_MAP_RESOLUTION
+from .bands import n_chunks
+from .quality import Quality, scene_quality
 
-PHASES = {"isotropic": ISOTROPIC, "hg": HG, "double_hg": DOUBLE_HG, "rayleigh": RAYLEIGH}
 #: map pieces reserved per texel for the single tracing pass (a map that needs more is traced again)
 MAP_PIECES_PER_TEXEL = 4
 
@@ -83,20 +83,20 @@ def pack_surfaces(surfaces) -> Surfaces:
 
 def no_shadow_maps(n_lights) -> ShadowMaps:
     """Exact shadow rays towards every light: no map (empty arrays of the maps' dtypes)."""
-    return ShadowMaps(np.full(n_lights, -1, np.int64), np.zeros((0, 13)), np.zeros(0, np.int64),
-                      np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 7)),
-                      np.zeros(0), np.zeros(0))
+    return ShadowMaps(map_of=np.full(n_lights, -1, np.int64), geo=np.zeros((0, 13)), res=np.zeros(0, np.int64),
+                      base=np.zeros(0, np.int64), start=np.zeros(1, np.int64), t0=np.zeros(0), t1=np.zeros(0),
+                      c=np.zeros((0, 7)), cum=np.zeros(0), reach=np.zeros(0))
 
 
 def pack_lights(lights, maps=None) -> Lights:
     """The lights in one records.Lights; ``maps`` from build_shadow_maps, or None for exact shadow rays
     towards every light."""
-    kind = np.array([DIRECTIONAL if isinstance(l, DirectionalLight) else POINT for l in lights], np.int64).reshape(-1)
-    vec = np.array([l.direction if isinstance(l, DirectionalLight) else l.position for l in lights],
-                   np.float64).reshape(-1, 3)
-    rgb = np.array([l.irradiance if isinstance(l, DirectionalLight) else l.intensity for l in lights],
-                   np.float64).reshape(-1, 3)
-    return Lights(kind, vec, rgb, no_shadow_maps(len(lights)) if maps is None else maps)
+    # each light says what records.Lights holds for it (scene.lights): its kind's id, its vector (the
+    # direction towards it, or its position) and its rgb (irradiance or intensity)
+    kind = np.array([LIGHTS[l.KIND] for l in lights], np.int64).reshape(-1)
+    vec = np.array([l.record()[0] for l in lights], np.float64).reshape(-1, 3)
+    rgb = np.array([l.record()[1] for l in lights], np.float64).reshape(-1, 3)
+    return Lights(kind=kind, vec=vec, rgb=rgb, maps=no_shadow_maps(len(lights)) if maps is None else maps)
 
 
 def media_bbox(scene):
@@ -119,10 +119,11 @@ def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
         # neither surfaces nor shadow maps: None in their places, so that the kernels compile without
         # their code (kernels.features); a scene with either gets both records, so that every kernel has
         # at most two compiled versions
-        surfaces, lights = None, Lights(*pack_lights(scene.lights)[:3], None)
+        surfaces, lights = None, pack_lights(scene.lights)._replace(maps=None)
     else:
         surfaces, lights = pack_surfaces(scene.surfaces), pack_lights(scene.lights, maps)
-    return SceneRecords(med, surfaces, lights, np.array(scene.background, np.float64), ambient)
+    return SceneRecords(media=med, surfaces=surfaces, lights=lights, background=np.array(scene.background, np.float64),
+                        ambient=ambient)
 
 
 # --- shadow maps ------------------------------------------------------------------------------------------
@@ -135,7 +136,7 @@ def build_shadow_maps(lights, med, lo, hi, resolution, tol_t):
     map_of = np.full(len(lights), -1, np.int64)
     geos, parts, bases, offset = [], [], [], 0
     for i, light in enumerate(lights):
-        if not isinstance(light, DirectionalLight):
+        if not light.casts_map:
             continue
         geo = _map_geometry(np.asarray(light.direction, np.float64), centre, radius, resolution)
         start, arrays = _trace_map(geo, resolution, med, tol_t)
@@ -148,9 +149,9 @@ def build_shadow_maps(lights, med, lo, hi, resolution, tol_t):
         return None
     piece_offsets = np.cumsum([0] + [int(st[-1]) for st, _ in parts])
     start = np.concatenate([st[:-1] + po for (st, _), po in zip(parts, piece_offsets)] + [[piece_offsets[-1]]])
-    cat = [np.ascontiguousarray(np.concatenate([a[k] for _, a in parts])) for k in range(5)]
-    return ShadowMaps(map_of, np.array(geos), np.full(len(geos), resolution, np.int64), np.array(bases, np.int64),
-                      start.astype(np.int64), *cat)
+    cat = {name: np.ascontiguousarray(np.concatenate([getattr(a, name) for _, a in parts])) for name in MapPieces._fields}
+    return ShadowMaps(map_of=map_of, geo=np.array(geos), res=np.full(len(geos), resolution, np.int64),
+                      base=np.array(bases, np.int64), start=start.astype(np.int64), **cat)
 
 
 def _map_geometry(l, centre, radius, resolution):
@@ -185,13 +186,13 @@ def _trace_map(geo, resolution, med, tol_t):
         cap = int(used.max())  # a dense map: the second pass fits
     keep = np.concatenate([np.arange(ch * cap, ch * cap + used[ch]) for ch in range(chunks)])
     start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    return start, tuple(np.ascontiguousarray(a[keep]) for a in arrays)
+    return start, MapPieces(*(np.ascontiguousarray(a[keep]) for a in arrays))
 
 
 # --- camera -----------------------------------------------------------------------------------------------
 
 def camera_frame(camera):
-    """Unit forward, right and up vectors of the camera (MODEL.md §8: up is re-orthogonalised)."""
+    """Unit forward, right and up vectors of the camera (docs/model.md §8: up is re-orthogonalised)."""
     fwd = camera.look_at - camera.position
     fwd = fwd / np.linalg.norm(fwd)
     right = np.cross(fwd, camera.up)
@@ -200,7 +201,7 @@ def camera_frame(camera):
 
 
 def camera_basis(camera, width, height):
-    """Forward, and right / up scaled to the image plane's half-extent at distance 1 (MODEL.md §8)."""
+    """Forward, and right / up scaled to the image plane's half-extent at distance 1 (docs/model.md §8)."""
     fwd, right, up = camera_frame(camera)
     half_h = math.tan(math.radians(camera.fov) / 2)
     return fwd, right * half_h * width / height, up * half_h
@@ -210,7 +211,8 @@ def pack_camera(scene, seed) -> Camera:
     """The scene's camera and image size as one records.Camera."""
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     fwd, right, up = camera_basis(scene.camera, w, h)
-    return Camera(np.array(scene.camera.position, np.float64), fwd, right, up, w, h, spp, seed)
+    return Camera(position=np.array(scene.camera.position, np.float64), forward=fwd, right=right, up=up, width=w,
+                  height=h, spp=spp, seed=seed)
 
 
 # --- the quadrature of the in-scattering integral ----------------------------------------------------------
@@ -256,8 +258,8 @@ def legendre_tail(x, w):
 def quadrature_rule():
     """The step rule of the in-scattering integral: 7 Gauss nodes, extended to the 15 Kronrod nodes where
     the light is rough, with everything the kernel needs to weight e^-u times their interpolant exactly
-    (radiance._exp_weights). Returns (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col,
-    tail, fine_y, fine_w)."""
+    (kernels.single._exp_weights). Returns (gauss_x, gauss_lag, kronrod_x, kronrod_lag, gauss_col, kronrod_col,
+    tail, fine_y, fine_w) by name: a dict of the records.Quadrature fields that the rule fixes."""
     signed = np.concatenate([-_K15_HALF[:-1], _K15_HALF[::-1]])
     kronrod_x = 0.5 * (1.0 + signed)                       # increasing on [0, 1]
     is_gauss = np.zeros(15, bool)
@@ -267,13 +269,27 @@ def quadrature_rule():
     gauss_x = kronrod_x[gauss_col]
     gauss_w = 0.5 * np.concatenate([_G7_WEIGHTS_HALF, _G7_WEIGHTS_HALF[-2::-1]])
     y, w = gauss_legendre(FINE_POINTS)
-    return (gauss_x, _lagrange_at(gauss_x, y), kronrod_x, _lagrange_at(kronrod_x, y), gauss_col, kronrod_col,
-            legendre_tail(gauss_x, gauss_w), y, w)
+    return dict(gauss_x=gauss_x, gauss_lag=_lagrange_at(gauss_x, y), kronrod_x=kronrod_x,
+                kronrod_lag=_lagrange_at(kronrod_x, y), gauss_col=gauss_col, kronrod_col=kronrod_col,
+                tail=legendre_tail(gauss_x, gauss_w), fine_y=y, fine_w=w)
 
 
 def quadrature(quality) -> Quadrature:
-    """The rule and the resolved settings (a cloudmeta.render.Quality) as one records.Quadrature."""
+    """The rule and the resolved settings (a renderer.quality.Quality) as one records.Quadrature."""
     u_stop = -math.log(quality.cutoff) if quality.cutoff > 0.0 else math.inf
-    return Quadrature(*quadrature_rule(), float(quality.max_tau), float(quality.max_length),
-                      float(quality.max_angle), float(quality.cutoff), u_stop, float(quality.tol_t),
-                      float(quality.tolerance))
+    return Quadrature(**quadrature_rule(), max_tau=float(quality.max_tau), max_length=float(quality.max_length),
+                      max_angle=float(quality.max_angle), cutoff=float(quality.cutoff), u_stop=u_stop,
+                      tol_t=float(quality.tol_t), tolerance=float(quality.tolerance))
+
+
+# --- the whole scene --------------------------------------------------------------------------------------
+
+#: a scene packed once for every estimator: records.Camera, records.SceneRecords, records.Quadrature
+Packed = namedtuple("Packed", ["camera", "records", "quadrature"])
+
+
+def pack_scene(scene, seed, quality: Quality | None = None) -> Packed:
+    """The scene packed for the kernels, at the scene's quality settings or at ``quality``."""
+    quad = quadrature(scene_quality(scene) if quality is None else quality)
+    records = scene_records(scene, quad, scene.render.shadow_map or SHADOW_MAP_RESOLUTION)
+    return Packed(camera=pack_camera(scene, seed), records=records, quadrature=quad)

@@ -25,7 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError, SceneError
+from ..errors import InputError, SceneError
+from .document import Context, describe, read_yaml
 
 INTERPOLATIONS = ("linear", "smooth")
 #: sections whose values are settings of the whole sequence: keyframes there are refused
@@ -87,11 +88,6 @@ def interpolate(keys, frame, mode="linear"):
 
 # ------------------------------------------------------------------------------------- resolving
 
-def _describe(value):
-    from .scene import _describe as describe  # one wording for every scene error
-    return describe(value)
-
-
 def _key(path, key):
     return f"{path}.{key}" if path else str(key)
 
@@ -137,27 +133,27 @@ class _Resolver:
                 self.fail(_key(path, k), "unknown key in a keyframe mapping; expected keys, interpolate")
         mode = spec.get("interpolate", "linear")
         if mode not in INTERPOLATIONS:
-            self.fail(_key(path, "interpolate"), f"expected one of {', '.join(INTERPOLATIONS)}, got {_describe(mode)}")
+            self.fail(_key(path, "interpolate"), f"expected one of {', '.join(INTERPOLATIONS)}, got {describe(mode)}")
         keys, where = spec["keys"], _key(path, "keys")
         if not isinstance(keys, dict) or not keys:
             self.fail(where, f"expected a mapping of frame numbers to values, such as {{0: 1.0, 24: 2.0}}, "
-                             f"got {_describe(keys)}")
+                             f"got {describe(keys)}")
         shape = None
         for frame, value in keys.items():
             if isinstance(frame, bool) or not isinstance(frame, int):
-                self.fail(where, f"expected frame numbers (integers) as keys, got {_describe(frame)}")
+                self.fail(where, f"expected frame numbers (integers) as keys, got {describe(frame)}")
             at = f"{where}.{frame}"
             if isinstance(value, list) and value and all(_is_number(v) for v in value):
                 this = len(value)
             elif _is_number(value):
                 this = 0
             else:
-                self.fail(at, f"expected a finite number or a list of finite numbers, got {_describe(value)}")
+                self.fail(at, f"expected a finite number or a list of finite numbers, got {describe(value)}")
             if shape is None:
                 shape = this
             elif this != shape:
                 want = "a number" if shape == 0 else f"a list of {shape} numbers"
-                self.fail(at, f"expected {want} like the other keys, got {_describe(value)}")
+                self.fail(at, f"expected {want} like the other keys, got {describe(value)}")
         return interpolate(keys, self.frame, mode)
 
 
@@ -189,17 +185,17 @@ def naming_frame(frame):
 
 def _animation(file, raw, fail):
     if not isinstance(raw, dict):
-        fail("animation", f"expected a mapping such as {{frames: 48, fps: 24}}, got {_describe(raw)}")
+        fail("animation", f"expected a mapping such as {{frames: 48, fps: 24}}, got {describe(raw)}")
     for k in raw:
         if k not in ("frames", "fps"):
             fail(f"animation.{k}", "unknown key; expected one of: frames, fps")
     frames = raw.get("frames")
     if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
-        fail("animation.frames", f"expected an integer >= 1, got {_describe(frames)}"
+        fail("animation.frames", f"expected an integer >= 1, got {describe(frames)}"
              if "frames" in raw else "missing required key")
     fps = raw.get("fps", DEFAULT_FPS)
     if not (_is_number(fps) and fps > 0):
-        fail("animation.fps", f"expected a finite number > 0, got {_describe(fps)}")
+        fail("animation.fps", f"expected a finite number > 0, got {describe(fps)}")
     return Animation(int(frames), float(fps))
 
 
@@ -229,9 +225,8 @@ def resolve_frame(file, data, frame=None):
 
 def load_animation(path):
     """The ``animation`` section of the scene file at ``path`` as an Animation, or None when it has none."""
-    from .scene import _Context, _read_yaml
-    ctx = _Context(path)
-    data = _read_yaml(ctx)
+    ctx = Context(path)
+    data = read_yaml(ctx)
     if not isinstance(data, dict) or "animation" not in data:
         return None
 

@@ -1,4 +1,4 @@
-"""A blob: metaballs that share one kernel and one threshold (MODEL.md §1).
+"""A blob: metaballs that share one kernel and one threshold (docs/model.md §1).
 
 The constructor validates everything once and packs the balls into the flat arrays the kernels read:
 each ball becomes a centre and a 3x3 matrix ``frame`` = S^-1 Q^T that maps a point into the ball's unit
@@ -8,11 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
+from ..kernels.kinds import FALLOFFS
 from .limits import LENGTH_RANGE, MAX_BLOBBINESS, MAX_WEIGHT, THRESHOLD_RANGE
-
-#: kernel name -> the integer id the numba kernels switch on
-KERNELS = {"wyvill6": 0, "murakami4": 1, "nishimura": 2, "blinn": 3}
 
 
 def is_real(x):
@@ -65,7 +63,7 @@ def _finite_array(name, value, shape_tail, dtype=np.float64):
 
 
 def rotation_matrix(angles_deg):
-    """Q = Rz(az) Ry(ay) Rx(ax) for angles [ax, ay, az] in degrees (MODEL.md §9); accepts (..., 3)."""
+    """Q = Rz(az) Ry(ay) Rx(ax) for angles [ax, ay, az] in degrees (docs/model.md §9); accepts (..., 3)."""
     a = np.radians(np.asarray(angles_deg, dtype=np.float64))
     cx, cy, cz = np.cos(a[..., 0]), np.cos(a[..., 1]), np.cos(a[..., 2])
     sx, sy, sz = np.sin(a[..., 0]), np.sin(a[..., 1]), np.sin(a[..., 2])
@@ -90,7 +88,7 @@ class Blob:
     centers : (N, 3) ball centres.
     radii : (N,) sphere radii, or (N, 3) ellipsoid radii along the columns of each rotation.
     weights : (N,) weights q_i (any real; negative weights carve). A scalar applies to every ball.
-    kernel : ``wyvill6`` (default), ``murakami4``, ``nishimura`` or ``blinn`` (MODEL.md §1).
+    kernel : ``wyvill6`` (default), ``murakami4``, ``nishimura`` or ``blinn`` (docs/model.md §1).
     threshold : T > 0 (default 0.5).
     rotations : optional (N, 3) angles [ax, ay, az] in degrees, Q = Rz Ry Rx, or (N, 3, 3) matrices.
     blobbiness : b of the ``blinn`` kernel, k(u) = exp(-b u) (default 4).
@@ -118,8 +116,8 @@ class Blob:
             weights = np.full(n, float(weights))
         if weights.shape != (n,):
             raise InputError(f"weights: expected shape ({n},) to match centers, got {weights.shape}")
-        if not (isinstance(kernel, str) and kernel in KERNELS):
-            raise InputError(f"kernel: expected one of {', '.join(KERNELS)}, got {kernel!r}"[:200])
+        if not (isinstance(kernel, str) and kernel in FALLOFFS):
+            raise InputError(f"kernel: expected one of {', '.join(FALLOFFS)}, got {kernel!r}"[:200])
         lo, hi = THRESHOLD_RANGE
         threshold = real_number("threshold", threshold, lambda v: lo <= v <= hi,
                                 f"a finite number > 0, from {lo:g} to {hi:g}")
@@ -159,7 +157,7 @@ class Blob:
             raise InputError("rotations: expected angles in degrees within +-1e6")
 
         self.kernel = kernel
-        self.kernel_id = KERNELS[kernel]
+        self.kernel_id = FALLOFFS[kernel]
         self.threshold = float(threshold)
         self.blobbiness = float(blobbiness)
         self.centers = np.ascontiguousarray(centers)
@@ -195,7 +193,7 @@ class Blob:
     def bvh(self):
         """(node_box, node_a, node_b, node_n, items): the BVH over the supports, built on first use."""
         if self._bvh is None:
-            from .kernels.bvh import build_bvh
+            from ..kernels.bvh import build_bvh  # here: numba loads only when a BVH is first built
             self._bvh = build_bvh(self.bounds, 0)
         return self._bvh
 
@@ -203,3 +201,55 @@ class Blob:
     def diagonal(self):
         lo, hi = self.bbox
         return float(np.linalg.norm(hi - lo))
+
+    @property
+    def scale(self):
+        """The length that root tolerances are relative to: length_scale of the balls' supports (the
+        diagonal, unless some balls lie far from the rest)."""
+        return length_scale(self.bounds)
+
+
+#: a gap along an axis this many times wider than the groups on either side of it separates them: the
+#: geometry beyond it sets no tolerance of the geometry here
+FAR_GAP = 10.0
+
+
+def length_scale(bounds):
+    """The scale of root tolerances and of quadrature steps for balls whose supports have the boxes
+    ``bounds`` (N, 6) = [lo, hi]: the largest bounding-box diagonal among the groups that far gaps separate.
+    The balls are split, axis by axis and again within each part, wherever the gap between the parts is
+    more than FAR_GAP times wider than either part along that axis; a stray ball far from a cloud then does
+    not loosen the cloud's tolerances (issue #27). Without such a gap this is the diagonal itself, bit for
+    bit."""
+    bounds = np.asarray(bounds, np.float64)
+    lo_all, hi_all = bounds[:, :3].min(axis=0), bounds[:, 3:].max(axis=0)
+    diagonal = float(np.linalg.norm(hi_all - lo_all))
+    groups, parts = [], [np.arange(len(bounds))]
+    while parts:
+        idx = parts.pop()
+        cut = _far_cut(bounds, idx)
+        if cut is None:
+            groups.append(idx)
+        else:
+            parts.extend(cut)
+    if len(groups) == 1:
+        return diagonal
+    return max(float(np.linalg.norm(bounds[g, 3:].max(axis=0) - bounds[g, :3].min(axis=0))) for g in groups)
+
+
+def _far_cut(bounds, idx):
+    """The two parts of the balls ``idx`` on either side of the first far gap along x, y or z, or None."""
+    for axis in range(3):
+        lo, hi = bounds[idx, axis], bounds[idx, 3 + axis]
+        order = np.argsort(lo, kind="stable")
+        lo, hi = lo[order], hi[order]
+        reach = np.maximum.accumulate(hi)                  # the right end of everything so far
+        after = np.maximum.accumulate(hi[::-1])[::-1]      # the right end of everything from k on
+        gaps = lo[1:] - reach[:-1]
+        left = reach[:-1] - lo[0]                          # the left part's extent along the axis
+        right = after[1:] - lo[1:]                         # the right part's extent
+        far = np.flatnonzero(gaps > FAR_GAP * np.maximum(left, right))
+        if len(far):
+            k = int(far[0]) + 1
+            return [idx[order[:k]], idx[order[k:]]]
+    return None

@@ -1,4 +1,4 @@
-"""Colour: every conversion goes through colour-science (MODEL.md §7).
+"""Colour: every conversion goes through colour-science (docs/model.md §7).
 
 Colours in cloudmeta are linear RGB in a *working colourspace* (default ITU-R BT.709 primaries, D65 white).
 A scene colour is written as ``[r, g, b]``, ``{temperature: K}`` (a blackbody) or ``{illuminant: D65}``;
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 #: the working colourspace when a scene names none: linear BT.709 primaries with a D65 white
 DEFAULT_COLOURSPACE = "ITU-R BT.709"

@@ -1,16 +1,16 @@
 """Writes the accuracy scene suite of issue #11: the procedural ball sets (CSV) and every scene (YAML).
 
 Deterministic: each ball set comes from its own seeded numpy generator and is written with fixed
-formatting, so that running this again writes the committed files byte for byte (tests/test_suite.py
+formatting, so that running this again writes the committed files byte for byte (tests/renderer/test_suite.py
 checks it). The 77-ball cumulus and the 1,200-ball bank are the project's own (../cumulus.csv,
 ../dense_1000.csv, by relative balls_file paths), not copies.
 
 Every scene is small (64 x 48 pixels, spp 1: the pixel centre) so that a converged reference costs seconds.
-The first comment line of each YAML is its place in the suite, read by validation/_suite.py:
+The first comment line of each YAML is its place in the suite, read by validation/references/suite.py:
 
     # suite: lighting=front geometry=cumulus density=field phase=hg ambient=yes
 
-Axes and values (each value is covered by at least two scenes, validation/_suite.py checks it):
+Axes and values (each value is covered by at least two scenes, validation/references/suite.py checks it):
 lighting front (sun behind the camera) | back | side | grazing (sun a few degrees up) | point_inside |
 point_outside; geometry cumulus (77 balls) | deck (flat stratus deck) | ellipsoids (150 rotated) |
 puffs (500 small dense spheres) | bank (1,200 balls) | carved (negative balls); density field | excess |
@@ -189,7 +189,7 @@ SCENES = {
 def scene_text(name):
     tags, description, camera, background, ambient, lights, med = SCENES[name]
     text = (f"# suite: {tags}\n# {description}.\n# Accuracy suite of issue #11 (written by scenes/suite/make_suite.py; "
-            f"validation/suite_references.py).\n{IMAGE}\n{camera}\nbackground: {background}\n")
+            f"validation/accuracy/suite_references.py).\n{IMAGE}\n{camera}\nbackground: {background}\n")
     if ambient is not None:
         text += f"ambient: {ambient}\n"
     return text + "lights:\n" + "".join(lights) + med + "render: {quality: default}\n" + \

@@ -5,10 +5,10 @@ import numpy as np
 from numba import njit
 
 from cloudmeta.kernels import features
-from cloudmeta.render import pack_scene
+from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.scene import load_scene
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @njit

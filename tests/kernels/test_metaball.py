@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from cloudmeta.blob import rotation_matrix
+from cloudmeta.scene.blob import rotation_matrix
 from cloudmeta.kernels import metaball as km
 from tests import naive
 
@@ -17,7 +17,7 @@ def test_control_values_match_the_curve(kernel, a):
 
 
 def test_wyvill6_paper_numbers_with_erratum():
-    """MODEL.md §2: d_3 = 8 a^2 (8a + 5) / 45; the paper's own numbers 2.31 (a = 1) and 0.4 (a = 0.5)."""
+    """docs/model.md §2: d_3 = 8 a^2 (8a + 5) / 45; the paper's own numbers 2.31 (a = 1) and 0.4 (a = 0.5)."""
     out = np.empty(7)
     km.control_values(km.WYVILL6, 1.0, 1.0, out)
     np.testing.assert_allclose(out, [0, 0, 16 / 27, 104 / 45, 16 / 27, 0, 0], rtol=1e-15)

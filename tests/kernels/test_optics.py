@@ -1,14 +1,15 @@
-"""Phase functions (cloudmeta.kernels.optics) against MODEL.md §4's formulas (tests/naive.py)."""
+"""Phase functions (cloudmeta.kernels.optics) against docs/model.md §4's formulas (tests/naive.py)."""
 import numpy as np
 import pytest
 
+from cloudmeta.kernels import kinds
 from cloudmeta.kernels import optics as ko
 
 from tests import naive
 
 COS = np.linspace(-1.0, 1.0, 41)
-CASES = [("isotropic", ko.ISOTROPIC, 0.0, 0.0, 1.0), ("hg", ko.HG, 0.6, 0.0, 1.0), ("hg", ko.HG, -0.3, 0.0, 1.0),
-         ("hg", ko.HG, 0.0, 0.0, 1.0), ("double_hg", ko.DOUBLE_HG, 0.8, -0.4, 0.7), ("rayleigh", ko.RAYLEIGH, 0.0, 0.0, 1.0)]
+CASES = [("isotropic", kinds.ISOTROPIC, 0.0, 0.0, 1.0), ("hg", kinds.HG, 0.6, 0.0, 1.0), ("hg", kinds.HG, -0.3, 0.0, 1.0),
+         ("hg", kinds.HG, 0.0, 0.0, 1.0), ("double_hg", kinds.DOUBLE_HG, 0.8, -0.4, 0.7), ("rayleigh", kinds.RAYLEIGH, 0.0, 0.0, 1.0)]
 
 
 @pytest.mark.parametrize("name, kind, g1, g2, w", CASES)

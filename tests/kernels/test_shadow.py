@@ -10,10 +10,11 @@ import cloudmeta as cm
 from cloudmeta.engine import blob_record
 from cloudmeta.kernels import shadow as ksh
 from cloudmeta.kernels import sweep as ks
+from cloudmeta.kernels.kinds import DENSITY_FIELD, DENSITY_MODES
 from tests import naive
 from tests.conftest import random_blob, random_rays
 
-MODES = {"field": ks.DENSITY_FIELD, "excess": ks.DENSITY_EXCESS, "uniform": ks.DENSITY_UNIFORM}
+MODES = DENSITY_MODES
 
 
 def full_sweep_depth(o, d, tmin, tmax, rec, mode, tol_t):
@@ -106,5 +107,5 @@ def test_scratch_grows(rng):
     rec = blob_record(blob)
     o, d = rays_inside_and_out(rng, blob, 10)
     for i in range(len(o)):
-        assert fused_depth(o[i], d[i], 0.0, np.inf, rec, ks.DENSITY_FIELD, 1e-12, capacity=1) == \
-            fused_depth(o[i], d[i], 0.0, np.inf, rec, ks.DENSITY_FIELD, 1e-12)
+        assert fused_depth(o[i], d[i], 0.0, np.inf, rec, DENSITY_FIELD, 1e-12, capacity=1) == \
+            fused_depth(o[i], d[i], 0.0, np.inf, rec, DENSITY_FIELD, 1e-12)

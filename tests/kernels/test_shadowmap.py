@@ -9,8 +9,8 @@ import numpy as np
 import cloudmeta as cm
 from cloudmeta.kernels.shadowmap import map_optical_depth
 
-ROOT = Path(__file__).resolve().parent.parent
-pack_module = sys.modules["cloudmeta.pack"]
+ROOT = Path(__file__).resolve().parents[2]
+pack_module = sys.modules["cloudmeta.renderer.pack"]
 
 
 def cumulus(size=40, **settings):

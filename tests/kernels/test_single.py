@@ -7,11 +7,11 @@ import textwrap
 import numpy as np
 import pytest
 
-from cloudmeta import pack
-from cloudmeta.kernels import radiance as kr
+from cloudmeta.renderer import pack
+from cloudmeta.kernels import single as kr
 from cloudmeta.kernels.media import alloc_ray_pieces
 from cloudmeta.kernels.records import Camera
-from cloudmeta.render import Quality
+from cloudmeta.renderer.quality import Quality
 from cloudmeta.scene import load_scene
 from tests import naive
 

@@ -9,10 +9,11 @@ import pytest
 
 import cloudmeta as cm
 from cloudmeta.io import read_exr, write_exr
-from cloudmeta.estimate import coarser_quality, estimated_rel_rmse, finer_quality
-from cloudmeta.render import render, resolve_quality
+from cloudmeta.renderer.estimate import coarser_quality, estimated_rel_rmse, finer_quality
+from cloudmeta.renderer import render
+from cloudmeta.renderer.quality import resolve_quality
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SUITE = ROOT / "scenes" / "suite"
 RESULTS = ROOT / "validation" / "results" / "suite"
 
@@ -133,7 +134,7 @@ def test_error_target_is_validated(tmp_path, value):
 
 def test_multiple_scattering_adds_its_standard_error_in_quadrature():
     from dataclasses import replace
-    from cloudmeta.multiple import render_multiple
+    from cloudmeta.renderer.multiple import render_multiple
     s = cm.load_scene(ROOT / "scenes" / "cumulus.yaml", width=6, height=5)
     single = replace(s, ambient=None)
     multi = replace(single, render=replace(single.render, scattering="multiple", ms_spp=3, max_order=4))

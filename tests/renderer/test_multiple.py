@@ -9,9 +9,10 @@ import pytest
 import cloudmeta as cm
 from cloudmeta.errors import SceneError
 from cloudmeta.kernels.bernstein import bernstein_cumulative
-from cloudmeta.kernels.optics import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH, phase
+from cloudmeta.kernels.kinds import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
+from cloudmeta.kernels.optics import phase
 from cloudmeta.kernels.sampling import free_flight, owen_scramble, sample_phase_cos, sobol4, turn, uniform, SOBOL_V
-from cloudmeta.multiple import render_multiple
+from cloudmeta.renderer.multiple import render_multiple
 
 FURNACE = """
 image: {width: 8, height: 8, spp: 1}
@@ -279,10 +280,10 @@ def test_ambient_is_refused_in_multiple_mode(tmp_path):
 
 
 def test_slab_against_adding_doubling(tmp_path):
-    """One slab case of validation/multiple_scattering.py (tau 2, albedo 0.8, g 0; reflected and
+    """One slab case of validation/accuracy/multiple_scattering.py (tau 2, albedo 0.8, g 0; reflected and
     transmitted radiance at nu ~ 0.6) within 1 % or 3 standard errors of iadpython."""
     pytest.importorskip("iadpython")  # a validation-only dependency (the dev extra)
-    from validation import multiple_scattering as ms
+    from validation.accuracy import multiple_scattering as ms
     rows = ms.slab(tmp_path, quick=True)
     assert len(rows) == 2
     for r in rows:

@@ -6,13 +6,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cloudmeta import pack
+from cloudmeta.renderer import pack
 from cloudmeta.kernels import records
 from cloudmeta.kernels.bvh import STACK, bvh_point_candidates
 from cloudmeta.scene import load_scene
 from tests.conftest import random_blob
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_merged_bvh_answers_for_each_blob(rng):
@@ -71,7 +71,7 @@ def test_scene_records_have_two_types_whatever_the_scene(scene, shadows):
 
 
 def pack_quality():
-    from cloudmeta.render import Quality
+    from cloudmeta.renderer.quality import Quality
     return Quality(tolerance=3e-3, max_tau=2.0, max_length=1.0, max_angle=0.2, cutoff=1e-3, tol_t=1e-9)
 
 

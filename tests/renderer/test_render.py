@@ -6,7 +6,7 @@ import numba
 import numpy as np
 import pytest
 
-from cloudmeta.render import render
+from cloudmeta.renderer import render
 from cloudmeta.scene import load_scene
 
 R = 1.0       # radius of the inside region: a wyvill6 ball of radius 2R at T = 0.5
@@ -116,7 +116,8 @@ def test_same_image_whatever_the_thread_count(tmp_path):
 
 def test_phase_functions_integrate_to_one():
     from scipy.integrate import quad
-    from cloudmeta.kernels.optics import phase, HG, DOUBLE_HG, RAYLEIGH, ISOTROPIC
+    from cloudmeta.kernels.kinds import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
+    from cloudmeta.kernels.optics import phase
     for kind, g1, g2, w in ((ISOTROPIC, 0, 0, 1), (HG, 0.6, 0, 1), (HG, -0.3, 0, 1), (DOUBLE_HG, 0.8, -0.4, 0.7),
                             (RAYLEIGH, 0, 0, 1)):
         total = 2 * math.pi * quad(lambda c: phase(kind, g1, g2, w, c), -1, 1, epsabs=0, epsrel=1e-12)[0]
@@ -142,3 +143,28 @@ def test_point_light_inside_a_ball_matches_quadrature(tmp_path, h):
 
     ref = quad(integrand, -half, half, points=[0.0], epsabs=0, epsrel=1e-12, limit=400)[0]
     np.testing.assert_allclose(img[0, 0, :3], ref, rtol=1e-6)
+
+
+@pytest.mark.parametrize("quality", ["default", "reference"])
+def test_a_stray_ball_far_away_changes_nothing_near_the_cloud(quality):
+    """Issue #27: tolerances follow the geometry a ray meets (Scene.length_scale), not the scene's diagonal:
+    a ball 1e3-1e6 away, out of view and off every shadow ray, leaves the cloud's pixels as they were."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    import cloudmeta as cm
+    root = Path(__file__).resolve().parents[2]
+    base = cm.load_scene(root / "scenes" / "cumulus.yaml", width=20, height=20)
+    base = replace(base, render=replace(base.render, quality=quality))
+    ref = render(base, progress=False)
+    medium = base.media[0]
+    for far in (1e3, 1e5, 1e6):
+        blob = cm.Blob(np.concatenate([medium.blob.centers, [[0.0, far, -far / 2]]]),
+                       np.concatenate([medium.blob.radii, [[1.0, 1.0, 1.0]]]),
+                       np.concatenate([medium.blob.weights, [1.0]]), medium.blob.kernel, medium.blob.threshold,
+                       rotations=np.concatenate([medium.blob.rotations, np.eye(3)[None]]))
+        stray = replace(base, media=(replace(medium, blob=blob),))
+        assert np.linalg.norm(np.subtract(*stray.bbox())) > far  # the diagonal grew; the length did not
+        assert stray.length_scale() == base.length_scale()
+        img = render(stray, progress=False)
+        assert np.max(np.abs(img - ref)) <= 1e-9 * np.max(np.abs(ref))

@@ -1,7 +1,8 @@
-"""The accuracy scene suite of issue #11 (scenes/suite/, validation/_suite.py): every scene is what its tags
+"""The accuracy scene suite of issue #11 (scenes/suite/, validation/references/suite.py): every scene is what its tags
 say, the suite covers every value of every axis at least twice, the generator writes the committed files,
 every scene renders, the committed references are there, current and finite, and (quick check) the
-references of three cheap scenes agree with validation/single_scattering.py's independent numpy reference."""
+references of three cheap scenes agree with validation/accuracy/single_scattering.py's independent numpy
+reference."""
 import filecmp
 import importlib.util
 
@@ -10,8 +11,8 @@ import pytest
 import yaml
 
 import cloudmeta as cm
-from validation import _suite as S
-from validation import suite_references
+from validation.accuracy import suite_references
+from validation.references import suite as S
 
 PATHS = S.scene_paths()
 IDS = [p.stem for p in PATHS]
@@ -55,7 +56,7 @@ def test_tags_say_what_the_scene_is(path):
 
 
 def test_lamps_inside_and_outside_and_the_strongest_forward_scattering():
-    from validation.single_scattering import plain_media
+    from validation.accuracy.single_scattering import plain_media
     gs = []
     for p in PATHS:
         raw, tags = _raw(p), S.tags(p)
@@ -91,12 +92,12 @@ def test_every_scene_renders_tiny(path):
 @pytest.mark.parametrize("path", PATHS, ids=IDS)
 def test_committed_reference_is_there_current_and_finite(path):
     entry = S.cached(path.stem)
-    assert entry is not None, f"run python -m validation.suite_references ({path.stem} has no reference)"
+    assert entry is not None, f"run python -m validation.accuracy.suite_references ({path.stem} has no reference)"
     ref, tight, meta = entry
     scene = cm.load_scene(path)
     assert ref.shape == tight.shape == (scene.image.height, scene.image.width, 4)
     assert np.all(np.isfinite(ref)) and np.all(np.isfinite(tight))
-    assert meta["fingerprint"] == S.fingerprint(path), "stale: run python -m validation.suite_references"
+    assert meta["fingerprint"] == S.fingerprint(path), "stale: run python -m validation.accuracy.suite_references"
     assert meta["ref_vs_tighter"] < suite_references.CONVERGED
     assert meta["numpy_rel_rmse"] < suite_references.AGREE
 

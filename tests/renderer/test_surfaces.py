@@ -1,4 +1,4 @@
-"""Opaque metaball surfaces (MODEL.md §6) and CSG through negative weights (issue 7): the first hit and the
+"""Opaque metaball surfaces (docs/model.md §6) and CSG through negative weights (issue 7): the first hit and the
 normal through the API, and rendered surfaces against closed forms and an independent isosurface render."""
 import math
 
@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 import cloudmeta as cm
-from cloudmeta.render import render
+from cloudmeta.renderer import render
 from cloudmeta.scene import load_scene
 from tests import naive
 from tests.conftest import random_blob, random_rays
@@ -75,7 +75,7 @@ def directional(direction, irradiance):
 
 
 def pixel_rays(camera, width, height):
-    """The pixel-centre rays of a pinhole camera (MODEL.md §8), written out independently of the renderer:
+    """The pixel-centre rays of a pinhole camera (docs/model.md §8), written out independently of the renderer:
     (origins, unit directions), row-major from the top row."""
     pos, look, up = (np.array(camera[k], float) for k in ("position", "look_at", "up"))
     fwd = (look - pos) / np.linalg.norm(look - pos)
@@ -140,7 +140,7 @@ def test_first_hit_is_the_first_root(rng, kernel):
 def _surfaces_record(blobs):
     from types import SimpleNamespace
 
-    from cloudmeta.pack import pack_surfaces
+    from cloudmeta.renderer.pack import pack_surfaces
     return pack_surfaces([SimpleNamespace(blob=b, color=(0.5, 0.5, 0.5)) for b in blobs])
 
 
@@ -370,7 +370,7 @@ def test_surface_in_fog(tmp_path):
 
 def test_surface_behind_a_fog_slab_and_media_behind_it(tmp_path):
     """Fog in front (a uniform ball seen through its diameter) and a second medium behind the surface,
-    lit from behind it: the front fog's closed form (tests/test_render.py) plus the surface seen through
+    lit from behind it: the front fog's closed form (tests/renderer/test_render.py) plus the surface seen through
     e^-2 sigma R; the medium behind contributes nothing, to rounding."""
     sigma, E = 0.8, 2.5
     colour = np.array([0.7, 0.7, 0.7])
@@ -527,7 +527,7 @@ def test_same_image_whatever_the_thread_count(tmp_path):
 def test_the_readme_example_renders():
     """docs/surfaces.yaml, the README's picture, at a thumbnail: the ground fills the bottom, the blob the middle."""
     from pathlib import Path
-    s = load_scene(Path(__file__).parent.parent / "docs" / "surfaces.yaml", width=16, height=12)
+    s = load_scene(Path(__file__).resolve().parents[2] / "docs" / "surfaces.yaml", width=16, height=12)
     img, depth = render(s, progress=False, depth=True)
     assert np.all(np.isfinite(depth[-1])) and np.all(img[-1, :, 3] == 1.0)
     assert np.isfinite(depth[6, 8]) and np.all(img[0, 0, :3] > 0)

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 import cloudmeta as cm
-from cloudmeta.blob import rotation_matrix
+from cloudmeta.scene.blob import rotation_matrix
 
 
 @pytest.mark.parametrize("kwargs,match", [
@@ -23,7 +23,7 @@ def test_bad_blobs_name_the_argument_and_index(kwargs, match):
 
 
 def test_rotation_convention_is_rz_ry_rx():
-    """MODEL.md §9: Q = Rz(az) Ry(ay) Rx(ax), about the fixed x, then y, then z axes."""
+    """docs/model.md §9: Q = Rz(az) Ry(ay) Rx(ax), about the fixed x, then y, then z axes."""
     q = rotation_matrix([0, 0, 90])
     np.testing.assert_allclose(q @ [1, 0, 0], [0, 1, 0], atol=1e-15)
     q = rotation_matrix([90, 0, 90])  # x first: y -> z; then z about z stays z

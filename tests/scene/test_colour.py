@@ -1,8 +1,8 @@
-"""cloudmeta.colour: scene colours, chromaticities and the sRGB preview encoding (MODEL.md §7)."""
+"""cloudmeta.colour: scene colours, chromaticities and the sRGB preview encoding (docs/model.md §7)."""
 import numpy as np
 import pytest
 
-from cloudmeta.colour import (DEFAULT_COLOURSPACE, chromaticities, encode_srgb, parse_colour,
+from cloudmeta.scene.colour import (DEFAULT_COLOURSPACE, chromaticities, encode_srgb, parse_colour,
                               working_colourspace)
 from cloudmeta.errors import InputError
 
@@ -108,7 +108,7 @@ def test_15_encode_srgb_refuses_nan():
 
 
 def _fresh_store(monkeypatch, folder):
-    import cloudmeta.colour as cc
+    import cloudmeta.scene.colour as cc
     monkeypatch.setenv("CLOUDMETA_CACHE_DIR", str(folder))
     monkeypatch.delenv("CLOUDMETA_NO_CACHE", raising=False)
     monkeypatch.setattr(cc, "_STORE", None)
@@ -168,7 +168,7 @@ def test_18_a_render_imports_neither_colour_science_nor_plotting_libraries(tmp_p
     import sys
     from pathlib import Path
 
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     probe = (
         "import sys, cloudmeta as cm\n"
         f"s = cm.load_scene({str(root / 'scenes' / 'cumulus.yaml')!r}, width=4, height=3)\n"
@@ -186,7 +186,7 @@ def test_18_a_render_imports_neither_colour_science_nor_plotting_libraries(tmp_p
 def test_19_srgb_table_reproduces_colour_science_for_every_double_tried():
     import colour
 
-    import cloudmeta.colour as cc
+    import cloudmeta.scene.colour as cc
 
     thresholds = cc._srgb_thresholds()
     rng = np.random.default_rng(3)

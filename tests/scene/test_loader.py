@@ -1,5 +1,5 @@
 """cloudmeta.scene: a valid scene loads with the right values; every bad one is a SceneError naming the
-file and the exact key path (MODEL.md §9)."""
+file and the exact key path (docs/model.md §9)."""
 import copy
 import dataclasses
 import os
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from cloudmeta.blob import rotation_matrix
-from cloudmeta.colour import parse_colour
+from cloudmeta.scene.blob import rotation_matrix
+from cloudmeta.scene.colour import parse_colour
 from cloudmeta.errors import SceneError
 from cloudmeta.scene import Density, Phase, PointLight, RenderSettings, load_scene
 
@@ -294,7 +294,11 @@ def test_08_scene_level_errors(tmp_path, build, key_path, fragment):
     ("short row", "x,y,z,radius,weight\n0,0,0,1,1\n\n0,0,1\n", "line 4: expected 5 comma-separated"),
     ("not a number", "x,y,z,radius,weight\n0,0,0,1,1\n0,a,0,1,1\n", "line 3: expected finite numbers"),
     ("non-finite", "x,y,z,radius,weight\n0,0,0,1,1\n0,0,0,1,nan\n", "line 3: expected finite numbers"),
-    ("radius 0", "x,y,z,radius,weight\n0,0,0,0,1\n", "line 2: expected radii > 0"),
+    ("radius 0", "x,y,z,radius,weight\n0,0,0,0,1\n", "line 2: expected radii > 0, got radius 0"),
+    # a number > 0 that rounds to 0: quoted as written, not as the 0 it became (issue #27)
+    ("radius 1e-400", "x,y,z,radius,weight\n0,0,0,1e-400,1\n", "line 2: expected radii > 0, got radius 1e-400"),
+    ("ellipsoid ry 1e-400", "x,y,z,rx,ry,rz,ax,ay,az,weight\n0,0,0,1,1e-400,1,0,0,0,1\n",
+     "line 2: expected radii > 0, got rx 1, ry 1e-400, rz 1"),
     ("empty", "\n", "expected a header line"),
     ("header only", "x,y,z,rx,ry,rz,ax,ay,az,weight\n", "at least one ball"),
     ("missing file", None, "cannot read the balls file"),
@@ -356,14 +360,15 @@ HOSTILE = [
     ("max_tau 1e-12", ("render", "max_tau"), 1e-12, "render.max_tau", "at least"),
     ("root_tolerance 1e-20", ("render", "root_tolerance"), 1e-20, "render.root_tolerance", "diagonal"),
     ("centre 1e308", B0 + ("center",), [1e308, 0, 0], "media[0].balls[0].center", "1e+100"),
-    ("centre far off", B0 + ("center",), [1e9, 0, 0], "media[0].balls[0].radius", "root tolerances"),
+    # a ball far from the rest sets no tolerance (Scene.length_scale): it is refused for lying too far away
+    ("centre far off", B0 + ("center",), [1e9, 0, 0], "media[0].balls[0].center", "x the scene's length"),
     ("radius 1e308", B0 + ("radius",), 1e308, "media[0].balls[0].radius", "1e+100"),
     ("radius 1e-300", B0 + ("radius",), 1e-300, "media[0].balls[0].radius", "1e-100"),
     ("radius 1e-9", B0 + ("radius",), 1e-9, "media[0].balls[0].radius", "root tolerances"),
     ("radii 1e-9", ("media", 0, "balls", 1, "radii"), [1, 1e-9, 1], "media[0].balls[1].radii", "root tolerances"),
     ("camera 1e308", ("camera", "position"), [0, -1e308, 2], "camera.position", "1e+100"),
-    ("camera far off", ("camera", "position"), [0, -1e10, 2], "camera.position", "x the scene's diagonal"),
-    ("point light far off", ("lights", 1, "position"), [0, 0, 1e10], "lights[1].position", "diagonal"),
+    ("camera far off", ("camera", "position"), [0, -1e10, 2], "camera.position", "x the scene's length"),
+    ("point light far off", ("lights", 1, "position"), [0, 0, 1e10], "lights[1].position", "x the scene's length"),
     ("look_at too close", ("camera",), {"position": [0, 0, 0], "look_at": [1e-300, 0, 0]}, "camera.look_at",
      "at least 1e-100"),
     ("weight 1e308", B0 + ("weight",), 1e308, "media[0].balls[0].weight", "x threshold"),
@@ -400,7 +405,7 @@ def test_13_limits_and_domain_name_the_key(tmp_path, what, path, value, key_path
 
 
 def test_14_memory_a_render_needs_is_checked(tmp_path, monkeypatch):
-    from cloudmeta import limits
+    from cloudmeta.scene import limits
     monkeypatch.setattr(limits, "physical_memory", lambda: 2 ** 30)
     with pytest.raises(SceneError) as exc:
         load_scene(write(tmp_path, edit(("image",), {"width": 8192, "height": 4096})))

@@ -11,10 +11,10 @@ import pytest
 from scipy import ndimage
 
 from cloudmeta import load_scene
-from cloudmeta.blob import rotation_matrix
+from cloudmeta.scene.blob import rotation_matrix
 from cloudmeta.inspect import sample_grid
 
-SCENES = Path(__file__).resolve().parent.parent / "scenes"
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
 YAMLS = sorted(SCENES.glob("*.yaml"))
 GENERATORS = sorted(SCENES.glob("make_*.py"))
 

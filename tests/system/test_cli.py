@@ -12,8 +12,9 @@ import OpenEXR
 import pytest
 
 from cloudmeta.cli import main
+from tests.system.children import cli_argv, signal_state
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_render_cumulus_writes_exr_and_png(tmp_path, capsys):
@@ -107,6 +108,10 @@ BAD_OUTPUTS = [
     (["-o", "o.exr", "--shadows", "map", "--shadow-map", "1000000"], "render.shadow_map", "<= 8192"),
     (["-o", "o.exr", "--width", "1000000000"], "image.width", "<= 16384"),
     (["-o", "o.exr", "--width", "abc"], "--width", "invalid int"),
+    (["-o", ""], "-o", "expected a file name, got an empty path"),
+    (["-o", "o.exr", "--png", ""], "--png", "expected a file name, got an empty path"),
+    (["--png", ""], "--png", "expected a file name, got an empty path"),
+    (["-o", "", "--frames", "0:2"], "-o", "expected a file name, got an empty path"),
 ]
 
 
@@ -135,6 +140,52 @@ def test_bad_outputs_through_a_subprocess(workdir, extra):
     assert _snapshot(workdir) == before
 
 
+@pytest.mark.parametrize("extra, written", [
+    (["-o", "o.exr"], {"o.exr"}),  # -o alone: the EXR alone, not the scene's output.png beside the scene
+    (["-o", "f_{frame}.exr", "--frames", "0:2"], {"f_0.exr", "f_1.exr"}),
+    (["-o", "o.exr", "--png", "o.png"], {"o.exr", "o.png"}),
+    ([], {"cumulus.exr", "cumulus.png"}),  # no -o: the scene's output.path and output.png
+    (["--frames", "0:1"], {"cumulus.exr", "cumulus.png"}),
+], ids=["-o", "-o --frames", "-o --png", "scene's", "scene's --frames"])
+def test_a_png_only_where_asked_for(workdir, monkeypatch, capsys, extra, written):
+    """The scene's output.png goes with its output.path: -o without --png writes no PNG (issue #27)."""
+    monkeypatch.chdir(workdir)
+    before = set(os.listdir(workdir))
+    assert main(SMALL + extra) == 0
+    capsys.readouterr()
+    assert set(os.listdir(workdir)) - before == written
+
+
+def test_render_frames_with_an_output_writes_no_png_unless_asked(workdir):
+    """The API's sequences follow the same rule: an explicit output without png writes no PNG; an empty
+    path is refused naming its label (Outputs) before any work."""
+    import cloudmeta as cm
+    from cloudmeta.cluster import Outputs
+    before = set(os.listdir(workdir))
+    small = dict(width=8, height=8, render={"quality": "draft"}, progress=False)
+    report = cm.render_frames(workdir / "cumulus.yaml", [0], str(workdir / "f_{frame}.exr"), **small)
+    assert report.outputs == {0: (str(workdir / "f_0.exr"), None)}
+    assert set(os.listdir(workdir)) - before == {"f_0.exr"}
+    for outputs, label in ((Outputs(exr="", exr_label="-o"), "-o"), (Outputs(png="", png_label="--png"), "--png")):
+        with pytest.raises(cm.CloudmetaError, match=f"^{label}: expected a file name, got an empty path$"):
+            cm.render_frames(workdir / "cumulus.yaml", [0], outputs, **small)
+    assert set(os.listdir(workdir)) - before == {"f_0.exr"}
+
+
+def test_version_and_plain_help(capsys):
+    import cloudmeta
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0 and capsys.readouterr().out == f"cloudmeta {cloudmeta.__version__}\n"
+    assert cloudmeta.__version__ == "0.1.0"
+    for argv in (["--help"], ["render", "--help"]):
+        with pytest.raises(SystemExit) as e:
+            main(argv)
+        out = capsys.readouterr().out
+        assert e.value.code == 0 and out.startswith("usage: cloudmeta")
+        assert "``" not in out and ":func:" not in out  # no reST markup in the help
+
+
 def test_a_failing_png_leaves_no_exr(workdir, monkeypatch, capsys):
     """Both outputs are renamed into place only when both are written: a PNG that fails to encode leaves
     neither (nor a temporary file)."""
@@ -159,21 +210,37 @@ def test_outputs_replace_existing_files_only_on_success(workdir, monkeypatch, ca
     assert not [p for p in workdir.iterdir() if ".tmp-" in p.name]
 
 
+LONG = ["render", "cumulus.yaml", "--width", "256", "--height", "256", "--spp", "64", "-o", "long.exr",
+        "--png", "long.png", "-q"]
+
+
+def _start_long_render(workdir):
+    """A long render in a child process (SIGINT at its default, see children.py), once it has reserved its
+    outputs (the two temporary files exist): the render is on. Returns the Popen."""
+    proc = subprocess.Popen(cli_argv(*LONG), cwd=workdir, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 600  # a cold kernel cache on a loaded machine: minutes before the render
+    while len([n for n in os.listdir(workdir) if ".tmp-" in n]) < 2:
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            out, err = proc.communicate()
+            pytest.fail(f"the render did not start: exit {proc.returncode}, {out!r} {err!r}")
+        time.sleep(0.05)
+    return proc
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_interrupt_exits_130_with_one_line_and_no_temporary_files(workdir, sig):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    args = [sys.executable, "-m", "cloudmeta.cli", "render", "cumulus.yaml", "--width", "256", "--height", "256",
-            "--spp", "64", "-o", "long.exr", "--png", "long.png", "-q"]
     before = set(os.listdir(workdir))
-    proc = subprocess.Popen(args, cwd=workdir, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = _start_long_render(workdir)
     try:
-        deadline = time.monotonic() + 240
-        while not [n for n in os.listdir(workdir) if ".tmp-" in n]:  # outputs reserved: the render is on
-            assert proc.poll() is None and time.monotonic() < deadline
-            time.sleep(0.05)
         time.sleep(1.0)
+        state = signal_state(proc.pid)  # in the message should it not exit: an ignored or blocked SIGINT
         proc.send_signal(sig)
-        out, err = proc.communicate(timeout=60)
+        try:
+            out, err = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"still running 60 s after {sig.name} ({state})")
     finally:
         proc.kill()
     assert proc.returncode == 130, err
@@ -181,11 +248,29 @@ def test_interrupt_exits_130_with_one_line_and_no_temporary_files(workdir, sig):
     assert set(os.listdir(workdir)) == before
 
 
+def test_a_render_killed_with_sigkill_leaves_temporaries_that_the_next_render_removes(workdir, monkeypatch, capsys):
+    """kill -9 gives no chance to clean up: the two reserved temporary files stay (empty); the next render
+    into the folder removes them (their writer is gone), and nothing else."""
+    (workdir / ".notes.tmp-1.txt").write_text("not cloudmeta's")
+    before = set(os.listdir(workdir))
+    proc = _start_long_render(workdir)
+    proc.kill()  # SIGKILL
+    proc.communicate(timeout=60)  # reaped: the PID is gone
+    assert proc.returncode == -signal.SIGKILL
+    left = [n for n in os.listdir(workdir) if ".tmp-" in n and n not in before]
+    assert sorted(n.split(".tmp-")[0] for n in left) == [".long.exr", ".long.png"]
+    assert all((workdir / n).stat().st_size == 0 for n in left)
+    monkeypatch.chdir(workdir)
+    assert main(SMALL + ["-o", "o.exr", "--png", "o.png"]) == 0
+    capsys.readouterr()
+    assert set(os.listdir(workdir)) == before | {"o.exr", "o.png"}
+
+
 def test_compile_jobs_cover_both_kinds_of_scene(tmp_path):
     """cloudmeta compile: its scenes load, and they are of both kinds the kernels compile for (without
     surfaces and maps: None records; with them: full records), in single and multiple scattering."""
     from cloudmeta.precompile import jobs
-    from cloudmeta.render import pack_scene
+    from cloudmeta.renderer.pack import pack_scene
     from cloudmeta.scene import load_scene
     names = [name for name, _ in jobs(tmp_path)]
     assert len(names) == 5 and names[0].startswith("the ray API")

@@ -11,9 +11,9 @@ from distributed import Client, LocalCluster, WorkerPlugin
 import cloudmeta as cm
 from cloudmeta.cluster import render_frames, tile_windows
 
-from .test_animation import ANIMATED, write_scene
+from tests.scene.test_animation import ANIMATED, write_scene
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 import yaml
 
-from cloudmeta import limits
+from cloudmeta.scene import limits
 from cloudmeta.errors import SceneError
 from cloudmeta.scene import Scene, load_scene
-from tests.test_scene import BASE
+from tests.scene.test_loader import BASE
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SEED = 15
 N_STRUCTURAL = 300
 N_TEXTUAL = 100

@@ -1,4 +1,4 @@
-"""validation/mitsuba_peer.py's pure-Python helpers (no Mitsuba needed): the voxel grid Mitsuba reads holds
+"""validation/peers/mitsuba_peer.py's pure-Python helpers (no Mitsuba needed): the voxel grid Mitsuba reads holds
 cloudmeta's own sigma_t at the voxel centres, in Mitsuba's layout, and the conventions it converts."""
 import math
 import sys
@@ -8,7 +8,7 @@ import pytest
 
 import cloudmeta as cm
 from cloudmeta.inspect import sigma_t
-from validation import mitsuba_peer as mp
+from validation.peers import mitsuba_peer as mp
 
 SCENE = """
 image: {width: 8, height: 6, spp: 1}

@@ -1,11 +1,11 @@
-"""validation/povray_peer.py: the POV-Ray scene read right, translated to an equivalent cloudmeta scene."""
+"""validation/peers/povray_peer.py: the POV-Ray scene read right, translated to an equivalent cloudmeta scene."""
 import math
 
 import numpy as np
 import pytest
 
 import cloudmeta as cm
-from validation import povray_peer as peer
+from validation.peers import povray_peer as peer
 
 POV = """camera { perspective location <0,-14,2.5> look_at <0,0,2> up z right -x*4/3 sky z angle 50 }
 light_source { <10,-10,20> color rgb 1 }

@@ -3,8 +3,9 @@ the timings are not (they depend on the machine). Quick runs write nothing under
 import numpy as np
 import pytest
 
-from validation import (optical_depth, optical_depth_vs_quadrature, paper_examples, render_quality, root_finding,
-                        root_finding_table, single_scattering, stability, time_vs_error)
+from validation.accuracy import (optical_depth, optical_depth_vs_quadrature, paper_examples, render_quality,
+                                 root_finding, root_finding_table, single_scattering, stability)
+from validation.performance import time_vs_error
 
 
 def test_optical_depth_every_case_below_1e_9():
@@ -69,9 +70,9 @@ def test_render_quality_default_within_1e_3():
 
 @pytest.mark.parametrize("mode", ["field", "excess", "uniform"])
 def test_plain_model_matches_the_engine(mode):
-    """validation/_plain.py (the references' numpy model) against the engine on random rays."""
+    """validation/references/plain.py (the references' numpy model) against the engine on random rays."""
     import cloudmeta as cm
-    from validation import _plain as P
+    from validation.references import plain as P
 
     rng = np.random.default_rng(11)
     c = rng.uniform(-2, 2, (20, 3))

@@ -1,0 +1,95 @@
+"""The light reaching a point, for every light kind (docs/model.md §5): the one module where a light kind is
+evaluated. ``light_at_node`` gives, per light, l . v and E_l T_l (the light's irradiance at the point times
+the shadow transmittance: blocked by surfaces, from a shadow map, or an exact shadow ray through the
+media); ``angular_cuts`` the equal-angle cuts of a segment seen from the point light that sees it under
+the widest angle (E ~ 1/r^2 near a point light). Both estimators (kernels.single, kernels.multiple) read
+lights through these two functions alone; a new kind is one branch in each and an id in kernels.kinds.
+"""
+import math
+
+import numpy as np
+from numba import njit
+
+from .config import NJIT, NJIT_INLINE
+from .features import light_map, map_transmittance, surfaces_blocking
+from .kinds import DIRECTIONAL
+from .media import shadow_transmittance
+
+
+#: inlined: a call per quadrature node would count references to every array of the scene records
+#: inlined: a call per quadrature node would count references to every array of the scene records
+@njit(**NJIT_INLINE)
+def light_at_node(pos, shadow_from, v, facing_only, tau_stop, scene, tol_t, scratch, work):
+    """Per light: work.nodes.light[li, 0] = l . v, [li, 1:4] = E_l T_l at pos. v is the view direction
+    at a medium's node (l . v = cos theta of the phase function), the normal at a surface point; with
+    facing_only, lights with l . v <= 0 get E_l T_l = 0 and no shadow ray (they cannot light the side of
+    a surface facing away). The shadow ray starts at shadow_from (pos, or a surface point lifted off its
+    surface) and runs along l; it stops counting once its optical depth exceeds tau_stop. Returns scratch."""
+    lights = scene.lights
+    surf = scene.surfaces
+    l_dir = work.nodes.l_dir
+    light_buf = work.nodes.light
+    for li in range(lights.kind.shape[0]):
+        if lights.kind[li] == DIRECTIONAL:
+            for c in range(3):
+                l_dir[c] = lights.vec[li, c]
+            e_scale = 1.0
+            l_max = np.inf
+        else:
+            for c in range(3):
+                l_dir[c] = lights.vec[li, c] - pos[c]
+            dist2 = l_dir[0] * l_dir[0] + l_dir[1] * l_dir[1] + l_dir[2] * l_dir[2]
+            l_max = math.sqrt(dist2)
+            for c in range(3):
+                l_dir[c] /= l_max
+            e_scale = 1.0 / dist2
+        cos_lv = l_dir[0] * v[0] + l_dir[1] * v[1] + l_dir[2] * v[2]
+        light_buf[li, 0] = cos_lv
+        if facing_only and cos_lv <= 0.0:
+            for c in range(3):
+                light_buf[li, 1 + c] = 0.0
+            continue
+        scratch, blocked = surfaces_blocking(shadow_from, l_dir, l_max, surf, tol_t, scratch, work)
+        mi = light_map(lights.maps, li)
+        if blocked:
+            t_l = 0.0
+        elif mi >= 0:
+            t_l = map_transmittance(shadow_from, lights.maps, mi)
+        else:
+            scratch, t_l = shadow_transmittance(shadow_from, l_dir, l_max, scene.media, tol_t, tau_stop, scratch,
+                                                work.cand, work.stack)
+        for c in range(3):
+            light_buf[li, 1 + c] = lights.rgb[li, c] * e_scale * t_l
+    return scratch
+
+
+@njit(**NJIT)
+def angular_cuts(o, d, ta, tb, light_kind, light_vec, max_angle, tol_t):
+    """Equal-angle cuts of [ta, tb] as seen from the point light that sees it under the widest angle:
+    returns (n_sub, t_c, h, theta_a, d_theta), t = t_c + h tan(theta); n_sub = 1 without point lights."""
+    best = 1
+    t_c = 0.0
+    h_best = 1.0
+    th_a = 0.0
+    d_th = 0.0
+    for li in range(light_kind.shape[0]):
+        if light_kind[li] == DIRECTIONAL:
+            continue
+        tc = 0.0
+        for c in range(3):
+            tc += (light_vec[li, c] - o[c]) * d[c]
+        h2 = 0.0
+        for c in range(3):
+            q = o[c] + tc * d[c] - light_vec[li, c]
+            h2 += q * q
+        h = max(math.sqrt(h2), tol_t)
+        a = math.atan((ta - tc) / h)
+        b = math.atan((tb - tc) / h)
+        n = int(math.ceil((b - a) / max_angle))
+        if n > best:
+            best = n
+            t_c = tc
+            h_best = h
+            th_a = a
+            d_th = (b - a) / n
+    return best, t_c, h_best, th_a, d_th

@@ -1,0 +1,22 @@
+"""The single-scattering driver: the deterministic image of a tile, the radiance kernel
+(cloudmeta.kernels.single.render_pixels) run over bands of rows. Every estimator starts from it: order 1
+of every light, exact optical depth and shadows, surfaces and the background (docs/model.md §5-6)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..kernels.single import render_pixels
+from .bands import run_bands
+
+
+def render_single(scene, packed, window, progress):
+    """(image, nearest) of the tile ``window``: the H x W x 4 float64 radiance and alpha, and per pixel the
+    distance to the nearest surface hit (inf where none). ``packed``: a pack.Packed of the scene."""
+    w, h = scene.image.width, scene.image.height
+    image = np.zeros((h, w, 4), np.float64)
+    nearest = np.full((h, w), np.inf)
+    camera, records, quad = packed.camera, packed.records, packed.quadrature
+    run_bands(lambda row0, p0, p1: render_pixels(camera, records, quad, row0, p0, p1, image, nearest), window, w,
+              progress)
+    (r_lo, r_hi), (c_lo, c_hi) = window
+    return image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi]

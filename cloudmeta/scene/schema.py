@@ -1,0 +1,114 @@
+"""The validated scene as frozen dataclasses (docs/model.md §9): what cloudmeta.scene.loader returns and
+every floor above reads. Nothing here validates: the loader builds these only from checked values."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .blob import Blob, length_scale
+from .colour import DEFAULT_COLOURSPACE
+from .lights import DirectionalLight, PointLight  # noqa: F401 (the light classes, part of the schema)
+
+
+def frozen_array(value):
+    arr = np.array(value, dtype=np.float64)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class ImageSettings:
+    width: int
+    height: int
+    spp: int
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    position: np.ndarray
+    look_at: np.ndarray
+    up: np.ndarray
+    fov: float  #: vertical field of view, degrees
+
+
+@dataclass(frozen=True)
+class Density:
+    mode: str = "field"     #: field | excess | uniform (docs/model.md §4)
+    scale: float = 1.0      #: sigma_t = scale * rho
+
+
+@dataclass(frozen=True)
+class Phase:
+    type: str = "isotropic"  #: isotropic | hg | double_hg | rayleigh
+    g: float = 0.0           #: hg
+    g1: float = 0.0          #: double_hg: w HG(g1) + (1 - w) HG(g2)
+    g2: float = 0.0
+    w: float = 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class Medium:
+    name: str
+    blob: Blob
+    density: Density
+    albedo: float
+    phase: Phase
+
+
+@dataclass(frozen=True, eq=False)
+class Surface:
+    name: str
+    blob: Blob
+    color: np.ndarray
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    quality: str = "default"
+    tolerance: float | None = None  #: quadrature: J's estimated error per step, relative to its largest value
+    max_tau: float | None = None
+    max_length: float | None = None
+    max_angle: float | None = None  #: radians, seen from a point light
+    cutoff: float | None = None
+    root_tolerance: float | None = None  #: relative to the scene's bounding-box diagonal
+    shadows: str = "exact"
+    shadow_map: int | None = None
+    colourspace: str = DEFAULT_COLOURSPACE
+    scattering: str = "single"  #: single | multiple (README: multiple scattering)
+    max_order: int = 64         #: multiple: the highest scattering order
+    ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
+    error: float | None = None  #: a target relative RMSE: the quadrature is refined until the estimate meets it
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    path: str | None = None  #: EXR, absolute (resolved against the YAML's folder)
+    png: str | None = None
+    exposure: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    path: str
+    image: ImageSettings
+    camera: Camera
+    background: np.ndarray
+    ambient: np.ndarray | None
+    lights: tuple
+    media: tuple
+    surfaces: tuple
+    render: RenderSettings
+    output: OutputSettings
+    inputs: tuple = ()  #: absolute paths of the files the scene was read from (the YAML, every balls_file)
+    merged_balls: int = 0  #: identical balls (same centre, radii, rotation) merged into one at load
+
+    def bbox(self):
+        """(lo, hi) of the union of every medium's and surface's balls."""
+        boxes = [thing.blob.bbox for thing in self.media + self.surfaces]
+        return (np.min([lo for lo, _ in boxes], axis=0), np.max([hi for _, hi in boxes], axis=0))
+
+    def length_scale(self):
+        """The length root tolerances and quadrature steps are relative to (cloudmeta.scene.blob.length_scale
+        of every ball of the media and surfaces): the bounding-box diagonal, unless geometry lies far away."""
+        return length_scale(np.concatenate([thing.blob.bounds for thing in self.media + self.surfaces]))

@@ -1,0 +1,33 @@
+"""Every name a scene file and the command line may use, defined once: the kinds (from kernels.kinds,
+where their ids are), the quality presets and their targets, shadow and scattering modes, and the defaults
+that more than one floor needs. cloudmeta.scene validates against these, the CLI builds its ``choices=``
+from them, and the renderer keys its tables by them (and asserts it covers each)."""
+from ..kernels.kinds import DENSITY_MODES as _DENSITY_IDS
+from ..kernels.kinds import FALLOFFS as _FALLOFF_IDS
+from ..kernels.kinds import LIGHTS as _LIGHT_IDS
+from ..kernels.kinds import PHASES as _PHASE_IDS
+
+#: ball kernels (falloffs k(u)), density modes, phase functions and light types, as a scene names them
+FALLOFFS = tuple(_FALLOFF_IDS)
+DENSITY_MODES = tuple(_DENSITY_IDS)
+PHASES = tuple(_PHASE_IDS)
+LIGHT_TYPES = tuple(_LIGHT_IDS)
+
+#: phase type -> its parameters (all required when the type is named)
+PHASE_PARAMS = {"isotropic": (), "hg": ("g",), "double_hg": ("g1", "g2", "w"), "rayleigh": ()}
+assert tuple(PHASE_PARAMS) == PHASES
+
+#: render.quality: the quadrature presets (renderer.quality.PRESETS holds their settings)
+QUALITIES = ("draft", "default", "fine", "reference")
+#: the relative RMSE, against the scattered light, that each preset aims at (docs/error_estimate.md)
+QUALITY_TARGETS = {"draft": 3e-3, "default": 1e-3, "fine": 3e-4}
+#: render.shadows: exact shadow rays, or light-space maps for directional lights
+SHADOW_MODES = ("exact", "map")
+#: render.scattering: the estimators (renderer.frame.ESTIMATORS)
+SCATTERING_MODES = ("single", "multiple")
+#: texels per side of a shadow map when render.shadow_map is not given
+SHADOW_MAP_RESOLUTION = 384
+
+#: CSV headers of a balls file -> does it describe ellipsoids
+CSV_HEADERS = {("x", "y", "z", "radius", "weight"): False,
+               ("x", "y", "z", "rx", "ry", "rz", "ax", "ay", "az", "weight"): True}
