@@ -26,7 +26,7 @@ def _render(args):
             raise InputError("--error: only for a single image, not with --frames, --tiles, --workers, "
                              "--scheduler or an animated scene")
         return _frames(args)  # a sequence, tiles or a cluster (docs/animation.md)
-    from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_exr, encode_png
+    from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_outputs
     from .scene import load_scene
 
     if args.exposure is not None:
@@ -48,9 +48,7 @@ def _render(args):
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
         image, error, took = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate)
-        encode_exr(image, tmps[0], colourspace=scene.render.colourspace, error=error)
-        if len(tmps) > 1:
-            encode_png(image, tmps[1], exposure=exposure, colourspace=scene.render.colourspace)
+        encode_outputs(image, tmps, scene.render.colourspace, exposure, error)
     if error is not None:
         from .renderer.estimate import estimated_rel_rmse
         target = (f"render.error {scene.render.error:g}" if scene.render.error is not None else

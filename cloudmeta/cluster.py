@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CloudmetaError, InputError, OutputError, SceneError
-from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_exr, encode_png
+from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_outputs
 from .renderer import render
 from .renderer.bands import progress_bar
 from .runtime import interruptible
@@ -274,9 +274,7 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
                                          f"lower the lights' irradiance or intensity (README: Limits)")
         # both files or neither: a frame is finished when all its files exist
         with atomic_outputs([exrs[f]] + ([pngs[f]] if f in pngs else [])) as tmps:
-            encode_exr(image, tmps[0], colourspace=colourspace)
-            if f in pngs:
-                encode_png(image, tmps[1], exposure=exposure, colourspace=colourspace)
+            encode_outputs(image, tmps, colourspace, exposure)
         report.rendered.append(f)
 
     if not todo:

@@ -330,6 +330,15 @@ def encode_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
     pixels.save(os.fspath(path), format="PNG")
 
 
+def encode_outputs(image, tmps, colourspace=DEFAULT_COLOURSPACE, exposure=0.0, error=None):
+    """The one writer of a render's files: the EXR to ``tmps[0]`` (with the ``error`` channels if given) and,
+    where ``tmps`` has a second path, the PNG preview to it. ``tmps`` are atomic_outputs' temporary files, so
+    both are renamed into place together or neither is."""
+    encode_exr(image, tmps[0], colourspace=colourspace, error=error)
+    if len(tmps) > 1:
+        encode_png(image, tmps[1], exposure=exposure, colourspace=colourspace)
+
+
 def check_exposure(exposure, label="exposure"):
     """Refuse a PNG exposure (stops) that is not a finite number within +-MAX_EXPOSURE (``2 ** 2000``
     overflows): InputError naming ``label`` (``--exposure``). Returns it as a float."""

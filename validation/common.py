@@ -74,9 +74,10 @@ def alternate(commands, repeats, run):
 def cache_note():
     """One line: whether this run's kernels came from numba's cache or were compiled fresh."""
     from cloudmeta.kernels import config
-    if config.CACHE:
-        return "engine kernels: loaded from numba's cache (stale after some edits; CLOUDMETA_NO_CACHE=1 compiles fresh)"
-    return "engine kernels: compiled fresh for this run (CLOUDMETA_NO_CACHE=1)"
+    problem = config.cache_problem()
+    if problem is None:
+        return f"engine kernels: cached in {config.CACHE_FOLDER} (keyed by a hash of the kernel sources)"
+    return f"engine kernels: not saved for later runs ({problem})"
 
 
 # --- files ----------------------------------------------------------------------------------------------------

@@ -3,8 +3,8 @@ the timings are not (they depend on the machine). Quick runs write nothing under
 import numpy as np
 import pytest
 
-from validation.accuracy import (optical_depth, optical_depth_vs_quadrature, paper_examples, render_quality,
-                                 root_finding, root_finding_table, single_scattering, stability)
+from validation.accuracy import (far_geometry, optical_depth, optical_depth_vs_quadrature, paper_examples,
+                                 render_quality, root_finding, root_finding_table, single_scattering, stability)
 from validation.performance import time_vs_error
 
 
@@ -61,6 +61,11 @@ def test_root_finding_table_roots_agree():
 def test_paper_examples():
     out = paper_examples.main(quick=True)
     assert out["passed"], [r for r in out["rows"] if not r["ok"]]
+
+
+def test_far_geometry_changes_no_pixel():
+    out = far_geometry.main(quick=True)
+    assert out["worst"] == 0.0 and len(out["rows"]) == 8
 
 
 def test_render_quality_default_within_1e_3():
