@@ -111,4 +111,8 @@ class Scene:
     def length_scale(self):
         """The length root tolerances and quadrature steps are relative to (cloudmeta.scene.blob.length_scale
         of every ball of the media and surfaces): the bounding-box diagonal, unless geometry lies far away."""
-        return length_scale(np.concatenate([thing.blob.bounds for thing in self.media + self.surfaces]))
+        scale = self.__dict__.get("_length_scale")
+        if scale is None:  # once per scene: the load's domain check and every render ask for it
+            scale = length_scale(np.concatenate([thing.blob.bounds for thing in self.media + self.surfaces]))
+            object.__setattr__(self, "_length_scale", scale)  # a cache, not a field: replace() drops it
+        return scale

@@ -16,8 +16,9 @@ def test_merge_identical_sums_weights_in_order_of_first_appearance():
     np.testing.assert_array_equal(first, [0, 1, 4])
     np.testing.assert_array_equal(merged[:, 9], [1.5, 1.0, 4.0])
     np.testing.assert_array_equal(merged[:, :9], b[[0, 1, 4], :9])
-    same, first = merge_identical(b[[0, 1, 4]])
-    assert same is not None and len(same) == 3 and list(first) == [0, 1, 2]
+    distinct = b[[0, 1, 4]]
+    same, first = merge_identical(distinct)
+    assert same is distinct and list(first) == [0, 1, 2]  # nothing to merge: the input as it is
 
 
 def write_scene(folder, csv_rows):
