@@ -40,8 +40,23 @@ def camera_ray(camera, i, j, s, strata, d):
 
 
 @njit(**NJIT_INLINE)
-def background_sample(background, out):
-    for c in range(3):
-        out[c] = background[c]
+def background_radiance(background, d):
+    """(r, g, b): the radiance of the background seen along the unit direction d. ``background`` is a
+    (K, 3) table over the elevation of d (z up), rows from -90 to 90 degrees in equal steps, interpolated
+    linearly; one row (K = 1) is a uniform background, returned as it is (no arithmetic: bit for bit)."""
+    k = background.shape[0]
+    if k == 1:
+        return background[0, 0], background[0, 1], background[0, 2]
+    x = (math.asin(min(1.0, max(-1.0, d[2]))) / math.pi + 0.5) * (k - 1)
+    i = min(int(x), k - 2)
+    f = x - i
+    return ((1.0 - f) * background[i, 0] + f * background[i + 1, 0],
+            (1.0 - f) * background[i, 1] + f * background[i + 1, 1],
+            (1.0 - f) * background[i, 2] + f * background[i + 1, 2])
+
+
+@njit(**NJIT_INLINE)
+def background_sample(background, d, out):
+    out[0], out[1], out[2] = background_radiance(background, d)
     out[3] = 1.0
     out[4] = np.inf

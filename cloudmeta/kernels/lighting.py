@@ -20,7 +20,7 @@ from .media import shadow_transmittance
 #: inlined: a call per quadrature node would count references to every array of the scene records
 @njit(**NJIT_INLINE)
 def light_at_node(pos, shadow_from, v, facing_only, tau_stop, scene, tol_t, scratch, work):
-    """Per light: work.nodes.light[li, 0] = l . v, [li, 1:4] = E_l T_l at pos. v is the view direction
+    """Per light: work.nodes.light[li, 0] = l . v, [li, 1:4] = E_l T_l at pos, [li, 4] = T_l. v is the view direction
     at a medium's node (l . v = cos theta of the phase function), the normal at a surface point; with
     facing_only, lights with l . v <= 0 get E_l T_l = 0 and no shadow ray (they cannot light the side of
     a surface facing away). The shadow ray starts at shadow_from (pos, or a surface point lifted off its
@@ -46,7 +46,7 @@ def light_at_node(pos, shadow_from, v, facing_only, tau_stop, scene, tol_t, scra
         cos_lv = l_dir[0] * v[0] + l_dir[1] * v[1] + l_dir[2] * v[2]
         light_buf[li, 0] = cos_lv
         if facing_only and cos_lv <= 0.0:
-            for c in range(3):
+            for c in range(4):
                 light_buf[li, 1 + c] = 0.0
             continue
         scratch, blocked = surfaces_blocking(shadow_from, l_dir, l_max, surf, tol_t, scratch, work)
@@ -60,6 +60,7 @@ def light_at_node(pos, shadow_from, v, facing_only, tau_stop, scene, tol_t, scra
                                                 work.cand, work.stack)
         for c in range(3):
             light_buf[li, 1 + c] = lights.rgb[li, c] * e_scale * t_l
+        light_buf[li, 4] = t_l
     return scratch
 
 

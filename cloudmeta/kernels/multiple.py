@@ -10,7 +10,7 @@ exactly; these paths add what it does not count:
   degree-7 antiderivative is solved there (sampling.free_flight). Every flight is a *forced collision*:
   the target is drawn inside the segment's optical depth U and the path weight is multiplied by
   1 - e^-U, so no path is wasted on escaping.
-- The environment (the uniform background radiance) is estimated where a path would escape: after each
+- The environment (the background's radiance, uniform or a sky table over elevation) is estimated where a path would escape: after each
   vertex, the background times the segment's transmittance e^-U (0 where the segment ends on an opaque
   surface). This counts every order >= 1 of the environment; order 0 (the background seen straight
   through) is the deterministic renderer's.
@@ -45,7 +45,7 @@ from .media import collect_media, n_media
 from .optics import phase
 from .bvh import misses_root_boxes
 from .features import surface_hit
-from .camera import camera_ray
+from .camera import background_radiance, camera_ray
 from .lighting import light_at_node
 from .raywork import alloc_ray_work, elementary_intervals
 from .records import CameraSegment, PathKey, PathVectors, RayWork
@@ -175,7 +175,7 @@ def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work
         o[c] = o_cam[c]
         d[c] = d_cam[c]
         out[c] = 0.0
-    has_env = background[0] > 0.0 or background[1] > 0.0 or background[2] > 0.0
+    has_env = np.any(background > 0.0)
     weight = 1.0
     for n_vert in range(max_order + 1):
         if n_vert == max_order and not has_env:
@@ -188,8 +188,10 @@ def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work
             rp = work.pieces
         if n_vert > 0 and has_env and not on_surface:
             transmittance = math.exp(-u_total)
-            for c in range(3):
-                out[c] += weight * transmittance * background[c]  # the environment, order n_vert
+            r, g, b = background_radiance(background, d)  # the environment, order n_vert, seen along d
+            out[0] += weight * transmittance * r
+            out[1] += weight * transmittance * g
+            out[2] += weight * transmittance * b
         if n_vert == max_order or n_el == 0:
             break
         # a forced collision inside the segment: the flight's target depth is drawn in [0, U)

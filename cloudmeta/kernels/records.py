@@ -58,8 +58,11 @@ MapPieces = namedtuple("MapPieces", ["t0", "t1", "c", "cum", "reach"])
 Lights = namedtuple("Lights", ["kind", "vec", "rgb", "maps"])
 
 #: what a camera ray sees: Media, Surfaces (None in a scene with neither surfaces nor shadow maps: the kernels
-#: then compile without the surface code, kernels.features), Lights, and the background and ambient radiance (3,)
-SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient"])
+#: then compile without the surface code, kernels.features), Lights, the background (K, 3) (one row: uniform; more:
+#: a sky over elevation, kernels.camera.background_radiance) and the ambient radiance (3,)
+#: octaves (N, 3): rows (a^i, b^i, c^i) of the approximate mode's octaves (docs/approximate.md); the single
+#: row (1, 1, 1) is single scattering
+SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient", "octaves"])
 
 #: the in-scattering quadrature (cloudmeta.renderer.pack.quadrature): the step rule, 7 Gauss and 15 Kronrod nodes
 #: on [0, 1] with their Lagrange bases at a fine Gauss rule (fine_y, fine_w); where the Gauss nodes and

@@ -64,7 +64,7 @@ from numba.extending import overload
 from .config import NJIT, NJIT_INLINE, OVERLOAD
 from .bernstein import bernstein_cumulative, bernstein_eval
 from .bvh import misses_root_boxes
-from .camera import background_sample, camera_ray
+from .camera import background_radiance, background_sample, camera_ray
 from .features import misses_surfaces, surface_hit
 from .lighting import angular_cuts, light_at_node
 from .media import collect_media
@@ -121,6 +121,23 @@ def _exp_weights(h, lagrange, fine_y, fine_w, out):
 
 
 @njit(**NJIT_INLINE)
+def octave_phase(octaves, phase_row, cos_lv, t_l):
+    """The factor of E_l T_l at a node: the phase function p(cos_lv) for single scattering (one octave,
+    exactly as it is), else Wrenninge's octaves sum_i c^i T_l^(a^i - 1) p(cos_lv; g b^i) (docs/approximate.md):
+    octave i sees the light through a^i times the optical depth, with b^i times the phase's asymmetry."""
+    kind, g1, g2, w = phase_row[0], phase_row[1], phase_row[2], phase_row[3]
+    if octaves.shape[0] == 1:
+        return phase(kind, g1, g2, w, cos_lv)
+    if t_l <= 0.0:
+        return 0.0
+    total = 0.0
+    for i in range(octaves.shape[0]):
+        a, b, c = octaves[i, 0], octaves[i, 1], octaves[i, 2]
+        total += c * t_l ** (a - 1.0) * phase(kind, g1 * b, g2 * b, w, cos_lv)
+    return total
+
+
+@njit(**NJIT_INLINE)
 def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     """work.nodes.j_val[:3, col] = J at optical depth u of the view ray: sum over media of
     (sigma_s / sigma_t) times (sum over lights of phase E_l T_l, plus the ambient radiance).
@@ -147,7 +164,10 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     pos = work.nodes.pos
     for c in range(3):
         pos[c] = o[c] + t * d[c]
-    scratch = light_at_node(pos, pos, d, False, quad.u_stop, scene, quad.tol_t, scratch, work)
+    octaves = scene.octaves
+    # the last octave sees the least optical depth (a^i tau): the shadow ray counts until that one is dark
+    scratch = light_at_node(pos, pos, d, False, quad.u_stop / octaves[octaves.shape[0] - 1, 0], scene, quad.tol_t,
+                            scratch, work)
     for m in range(med.albedo.shape[0]):
         if med.albedo[m] == 0.0:
             continue
@@ -155,7 +175,7 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
         if ratio == 0.0:
             continue
         for li in range(scene.lights.kind.shape[0]):
-            ph = phase(med.phase[m, 0], med.phase[m, 1], med.phase[m, 2], med.phase[m, 3], light_buf[li, 0])
+            ph = octave_phase(octaves, med.phase[m], light_buf[li, 0], light_buf[li, 4])
             for c in range(3):
                 j_val[c, col] += ratio * ph * light_buf[li, 1 + c]
         for c in range(3):
@@ -378,8 +398,10 @@ def ray_end(o, d, t_hit, s_hit, u_total, scene, quad, work, out):
     Returns work."""
     t_view = math.exp(-u_total)
     if s_hit < 0:
-        for c in range(3):
-            out[c] += scene.background[c] * t_view
+        r, g, b = background_radiance(scene.background, d)
+        out[0] += r * t_view
+        out[1] += g * t_view
+        out[2] += b * t_view
         out[3] = t_view
         return work
     out[3] = 0.0
@@ -443,7 +465,7 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth):
             camera_ray(camera, i, j, s, strata, d)
             if misses_root_boxes(camera.position, d, scene.media.bvh) and misses_surfaces(camera.position, d,
                                                                                            scene.surfaces):
-                background_sample(scene.background, px_out)  # nothing on the ray: the background, at once
+                background_sample(scene.background, d, px_out)  # nothing on the ray: the background, at once
             else:
                 work = single_scattering(camera.position, d, scene, quad, work, px_out)
             acc0 += px_out[0]

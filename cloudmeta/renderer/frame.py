@@ -16,6 +16,7 @@ from ..scene.schema import Scene
 from ..scene.vocabulary import SCATTERING_MODES
 from .bands import tile_window
 from .estimate import with_estimate
+from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, render_multiple
 from .pack import pack_scene
 from .quality import scene_quality
@@ -26,15 +27,19 @@ from .single import render_single
 class Estimator:
     """An estimator of ``render.scattering``: what it refuses in a scene (raises SceneError; None: nothing),
     and the Monte Carlo part it adds to the deterministic single-scattering image (None: none), called as
-    paths(scene, seed=, progress=, rows=, columns=, packed=) -> (mean, stderr), both H x W x 3."""
+    paths(scene, seed=, progress=, rows=, columns=, packed=) -> (mean, stderr), both H x W x 3; and how its
+    approximation's error is measured with ``error=True`` (None: it approximates nothing), called as
+    approximation(scene, image, packed, window, seed=) -> an approximate.ApproximationError."""
     check: Callable | None = None
     paths: Callable | None = None
+    approximation: Callable | None = None
 
 
 #: render.scattering -> its estimator; a new estimator is one entry here and one driver module
 ESTIMATORS = {
     "single": Estimator(),
     "multiple": Estimator(check=check_multiple, paths=render_multiple),
+    "approximate": Estimator(check=check_approximate, approximation=approximation_error),
 }
 assert tuple(ESTIMATORS) == SCATTERING_MODES, "every scattering mode of the scene's vocabulary has an estimator"
 
@@ -43,10 +48,13 @@ assert tuple(ESTIMATORS) == SCATTERING_MODES, "every scattering mode of the scen
 class RenderResult:
     """What a render gives back: image (H x W x 4 float32, linear RGB of the working colourspace and
     alpha), depth (H x W float64: the nearest surface hit among a pixel's samples, inf where none), and
-    error (H x W x 3 float32, each pixel's estimated absolute error) or None when not asked for."""
+    error (H x W x 3 float32, each pixel's estimated absolute error) or None when not asked for; with
+    ``render.scattering: approximate`` and the error asked for, ``approximation`` (an
+    approximate.ApproximationError): the approximation's estimated relative RMSE against the unbiased image."""
     image: np.ndarray
     depth: np.ndarray
     error: np.ndarray | None = None
+    approximation: object | None = None
 
 
 def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, error=False) -> RenderResult:
@@ -76,8 +84,11 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         image[..., :3] += mean
         if err is not None:
             err = np.sqrt(err * err + stderr * stderr)
+    approximation = None
+    if error and estimator.approximation is not None:
+        approximation = estimator.approximation(scene, image, packed, window, seed=seed)
     return RenderResult(image=image.astype(np.float32), depth=nearest.copy(),
-                        error=None if not error else err.astype(np.float32))
+                        error=None if not error else err.astype(np.float32), approximation=approximation)
 
 
 def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False):

@@ -122,8 +122,51 @@ def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
         surfaces, lights = None, pack_lights(scene.lights)._replace(maps=None)
     else:
         surfaces, lights = pack_surfaces(scene.surfaces), pack_lights(scene.lights, maps)
-    return SceneRecords(media=med, surfaces=surfaces, lights=lights, background=np.array(scene.background, np.float64),
-                        ambient=ambient)
+    background = background_table(scene)
+    octaves = single_octave()
+    if scene.render.scattering == "approximate":  # renderer.approximate: the octaves, the environment as ambient
+        octaves = octave_table(*scene.render.octaves)
+        ambient = sphere_mean(background)
+    return SceneRecords(media=med, surfaces=surfaces, lights=lights, background=background, ambient=ambient,
+                        octaves=octaves)
+
+
+def single_octave():
+    """The octaves of single scattering (kernels.single.octave_phase): one, (a^0, b^0, c^0) = (1, 1, 1)."""
+    return np.ones((1, 3))
+
+
+def octave_table(count, a, b, c):
+    """The approximate mode's octaves as kernels.single.octave_phase reads them: rows (a^i, b^i, c^i)."""
+    i = np.arange(count, dtype=np.float64)
+    return np.ascontiguousarray(np.stack([a ** i, b ** i, c ** i], axis=1))
+
+
+def sphere_mean(table):
+    """The solid-angle mean of a background table (rows over elevation -90 .. 90 degrees, or one row)."""
+    if table.shape[0] == 1:
+        return table[0].copy()
+    elevation = np.linspace(-np.pi / 2, np.pi / 2, table.shape[0])
+    weight = np.cos(elevation)
+    return (weight[:, None] * table).sum(axis=0) / weight.sum()
+
+
+def background_along(table, directions):
+    """(n, 3): the background's radiance along unit directions (n, 3), as kernels.camera.background_radiance."""
+    if table.shape[0] == 1:
+        return np.repeat(table, len(directions), axis=0)
+    x = (np.arcsin(np.clip(directions[:, 2], -1.0, 1.0)) / np.pi + 0.5) * (table.shape[0] - 1)
+    i = np.minimum(x.astype(np.int64), table.shape[0] - 2)
+    f = (x - i)[:, None]
+    return (1.0 - f) * table[i] + f * table[i + 1]
+
+
+def background_table(scene):
+    """The background as kernels.camera.background_radiance reads it: the sky's (181, 3) table over elevation
+    (-90 .. 90 degrees, z up) where the scene has one, else its uniform colour as one row."""
+    sky = getattr(scene, "sky", None)
+    table = np.array(scene.background, np.float64).reshape(1, 3) if sky is None else np.array(sky, np.float64)
+    return np.ascontiguousarray(table)
 
 
 # --- shadow maps ------------------------------------------------------------------------------------------
@@ -205,6 +248,14 @@ def camera_basis(camera, width, height):
     fwd, right, up = camera_frame(camera)
     half_h = math.tan(math.radians(camera.fov) / 2)
     return fwd, right * half_h * width / height, up * half_h
+
+
+def pixel_directions(camera, rows, cols):
+    """(n, 3): the unit directions through the centres of pixels (rows, cols) of a records.Camera."""
+    x = 2.0 * (cols + 0.5) / camera.width - 1.0
+    y = 1.0 - 2.0 * (rows + 0.5) / camera.height
+    d = camera.forward[None, :] + x[:, None] * camera.right[None, :] + y[:, None] * camera.up[None, :]
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
 def pack_camera(scene, seed) -> Camera:

@@ -14,6 +14,7 @@ MAX_SIDE = 16384               #: image.width, image.height
 MAX_PIXELS = 2 ** 26           #: width x height (8192 x 8192)
 MAX_SPP = 65536                #: image.spp, render.ms_spp
 MAX_ORDER = 10 ** 9            #: render.max_order (nothing is sized by it; albedo-1 furnaces need ~1e5)
+MAX_OCTAVES = 64               #: render.octaves.count (each octave is a pow and a phase per node and light)
 MAX_SAMPLES = 2 ** 32          #: width x height x spp (a 4K image at 512 spp)
 MAX_SHADOW_MAP = 8192          #: render.shadow_map, texels per side
 MAX_STEPS_PER_RAY = 1e6        #: L / render.max_length

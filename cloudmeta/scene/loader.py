@@ -22,8 +22,10 @@ from .colour import DEFAULT_COLOURSPACE, colourspace_name
 from .document import Context, Node, fmt_numbers, frozen_array, read_yaml
 from .domain import check_domain
 from .schema import Camera, Density, ImageSettings, Medium, OutputSettings, Phase, RenderSettings, Scene, Surface
-from .lights import read_light, unit
-from .vocabulary import DENSITY_MODES, PHASE_PARAMS, QUALITIES, SCATTERING_MODES, SHADOW_MODES
+from .atmosphere import DEFAULT_GROUND_ALBEDO, sky_mean
+from .lights import SUN_KEYS, SunLight, read_light, read_sun, unit
+from .vocabulary import (APPROXIMATE_METHODS, DENSITY_MODES, OCTAVES, PHASE_PARAMS, QUALITIES, SCATTERING_MODES,
+                         SHADOW_MODES)
 
 #: an up vector closer than this (sine of the angle) to the view direction is refused
 _PARALLEL_SINE = 1e-6
@@ -145,10 +147,21 @@ def _render(top, overrides=None):
         shadow_map=n.integer("shadow_map", None, **_int_range(2, lim.MAX_SHADOW_MAP)),
         colourspace=colourspace,
         scattering=n.choice("scattering", SCATTERING_MODES, "single"),
+        method=n.choice("method", APPROXIMATE_METHODS, "octaves"),
+        octaves=_octaves(n),
         max_order=n.integer("max_order", 64, **_int_range(1, lim.MAX_ORDER)),
         ms_spp=n.integer("ms_spp", 16, **_int_range(1, lim.MAX_SPP)),
         error=n.number("error", None, check=lambda v: lim.MIN_ERROR_TARGET <= v <= 0.5,
                        expect=f"a relative RMSE from {lim.MIN_ERROR_TARGET:g} to 0.5 (docs/error_estimate.md)"))
+
+
+def _octaves(render):
+    """render.octaves: {count, a, b, c} (docs/approximate.md), each defaulting to the fitted OCTAVES."""
+    n = render.node("octaves", ("count", "a", "b", "c"), {})
+    count, a, b, c = OCTAVES
+    fraction = dict(check=lambda v: 0 < v <= 1, expect="a number in (0, 1]")
+    return (n.integer("count", count, **_int_range(1, lim.MAX_OCTAVES)), n.number("a", a, **fraction),
+            n.number("b", b, **fraction), n.number("c", c, **fraction))
 
 
 EXPOSURE = dict(check=lambda v: abs(v) <= lim.MAX_EXPOSURE,
@@ -159,6 +172,68 @@ def _output(top):
     n = top.node("output", ("path", "png", "exposure"), {})
     return OutputSettings(n.path_to("path"), n.path_to("png"), n.number("exposure", 0.0, **EXPOSURE))
 
+
+
+_COLOUR_FORMS = "a colour ([r, g, b], {temperature: K} or {illuminant: NAME})"
+_SKY_FORMS = ("sky (the sky of the scene's one sun light) or {sky: {elevation, azimuth, turbidity or aerosol_depth, "
+              "irradiance, ground_albedo}}")
+
+
+def _is_sky(raw):
+    """Whether a ``background`` or ``ambient`` value asks for a sky (docs/atmosphere.md), not a colour."""
+    return raw == "sky" or (isinstance(raw, dict) and "sky" in raw)
+
+
+def _sky_of_sun(top, key, lights, cs):
+    """The sky of the scene's one ``type: sun`` light; an error naming ``key`` if it has none or several."""
+    suns = [light.sun for light in lights if isinstance(light, SunLight)]
+    if len(suns) != 1:
+        found = "none" if not suns else f"{len(suns)}"
+        top.fail(key, f"sky is the sky of the scene's one light of type: sun, found {found}; add one "
+                      f"(lights: [{{type: sun, elevation: DEGREES}}]) or give the sky itself: "
+                      f"background: {{sky: {{elevation: DEGREES, ...}}}}")
+    return suns[0].sky(cs, DEFAULT_GROUND_ALBEDO)
+
+
+def _sky(top, cs, lights):
+    """(181, 3) the sky of ``background: sky`` or ``background: {sky: {...}}`` (docs/atmosphere.md)."""
+    raw = top.data.get("background")
+    if raw == "sky":
+        sky, where = _sky_of_sun(top, "background", lights, cs), "background"
+    else:
+        n = top.node("background", ("sky",))
+        s = n.node("sky", SUN_KEYS + ("ground_albedo",))
+        sun = read_sun(s)
+        albedo = s.number("ground_albedo", DEFAULT_GROUND_ALBEDO, check=lambda v: 0 <= v <= 1,
+                          expect="an albedo in [0, 1]")
+        sky, where = sun.sky(cs, albedo), s.key("irradiance")
+    if not np.max(sky) <= lim.MAX_RADIANCE:
+        top.ctx.fail(where, f"expected the sky's radiance <= {lim.MAX_RADIANCE:g} (README: Limits), its largest is "
+                            f"{np.max(sky):.3g}")
+    return frozen_array(sky)
+
+
+#: what _colour_or_sky returns where a key asks for a sky: read once the lights are
+_SKY = object()
+
+
+def _colour_or_sky(top, key, cs, default):
+    """``key`` read as a colour (docs/model.md §7), or _SKY where it asks for a sky."""
+    raw = top.data.get(key)
+    if _is_sky(raw):
+        return _SKY
+    if isinstance(raw, str):
+        forms = _SKY_FORMS if key == "background" else "sky (the mean radiance of the scene's sky)"
+        top.fail(key, f"expected {_COLOUR_FORMS} or {forms}, got the text {raw!r}")
+    return top.colour(key, cs, default)
+
+
+def _ambient_sky(top, cs, lights, sky):
+    """``ambient: sky``: the mean over the sphere of the scene's sky, its background's or else its one sun's
+    (the uniform ambient of single scattering, occlusion ignored: docs/atmosphere.md)."""
+    if top.data.get("ambient") != "sky":
+        top.fail("ambient", f"expected {_COLOUR_FORMS} or sky, got {top.data.get('ambient')!r}")
+    return frozen_array(sky_mean(_sky_of_sun(top, "ambient", lights, cs) if sky is None else sky))
 
 
 def load_scene(path, width=None, height=None, spp=None, render=None, frame=None) -> Scene:
@@ -188,14 +263,20 @@ def _scene(ctx, data, width, height, spp, render):
     cs = render.colourspace
     image = _image(top, width, height, spp)
     camera = _camera(top)
-    background = top.colour("background", cs, [0.0, 0.0, 0.0])
-    ambient = top.colour("ambient", cs, None)
+    background = _colour_or_sky(top, "background", cs, [0.0, 0.0, 0.0])
+    ambient = _colour_or_sky(top, "ambient", cs, None)
     lights = tuple(read_light(ctx, p, raw, cs) for p, raw in top.items("lights"))
+    sky = None
+    if background is _SKY:  # a sky: its mean over the sphere where one uniform colour is needed
+        sky = _sky(top, cs, lights)
+        background = frozen_array(sky_mean(sky))
+    if ambient is _SKY:
+        ambient = _ambient_sky(top, cs, lights, sky)
     media = _named(ctx, top.items("media"), "medium", lambda p, raw, name: _medium(ctx, p, raw, name))
     surfaces = _named(ctx, top.items("surfaces"), "surface", lambda p, raw, name: _surface(ctx, p, raw, name, cs))
     if not media and not surfaces:
         ctx.fail("media", "a scene needs at least one medium or surface, found none")
     scene = Scene(ctx.file, image, camera, background, ambient, lights, media, surfaces, render, _output(top),
-                  tuple(ctx.inputs), ctx.merged_balls)
+                  tuple(ctx.inputs), ctx.merged_balls, sky=sky)
     check_domain(ctx, scene)
     return scene

@@ -8,7 +8,8 @@ import numpy as np
 
 from .blob import Blob, length_scale
 from .colour import DEFAULT_COLOURSPACE
-from .lights import DirectionalLight, PointLight  # noqa: F401 (the light classes, part of the schema)
+from .vocabulary import OCTAVES
+from .lights import DirectionalLight, PointLight, SunLight  # noqa: F401 (the light classes, part of the schema)
 
 
 def frozen_array(value):
@@ -75,7 +76,9 @@ class RenderSettings:
     shadows: str = "exact"
     shadow_map: int | None = None
     colourspace: str = DEFAULT_COLOURSPACE
-    scattering: str = "single"  #: single | multiple (README: multiple scattering)
+    scattering: str = "single"  #: single | multiple | approximate (README: multiple scattering)
+    method: str = "octaves"     #: approximate: the method (docs/approximate.md)
+    octaves: tuple = OCTAVES    #: approximate, octaves: (count, a, b, c)
     max_order: int = 64         #: multiple: the highest scattering order
     ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
     error: float | None = None  #: a target relative RMSE: the quadrature is refined until the estimate meets it
@@ -102,6 +105,10 @@ class Scene:
     output: OutputSettings
     inputs: tuple = ()  #: absolute paths of the files the scene was read from (the YAML, every balls_file)
     merged_balls: int = 0  #: identical balls (same centre, radii, rotation) merged into one at load
+    #: ``background: sky``: (181, 3) read-only linear RGB, the sky's radiance at view elevations -90 .. 90
+    #: degrees, 1 degree apart (row i: elevation i - 90, z up), the same at every azimuth; None otherwise.
+    #: ``background`` is then its mean over the sphere (docs/atmosphere.md)
+    sky: np.ndarray | None = None
 
     def bbox(self):
         """(lo, hi) of the union of every medium's and surface's balls."""

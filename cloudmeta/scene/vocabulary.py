@@ -24,7 +24,12 @@ QUALITY_TARGETS = {"draft": 3e-3, "default": 1e-3, "fine": 3e-4}
 #: render.shadows: exact shadow rays, or light-space maps for directional lights
 SHADOW_MODES = ("exact", "map")
 #: render.scattering: the estimators (renderer.frame.ESTIMATORS)
-SCATTERING_MODES = ("single", "multiple")
+SCATTERING_MODES = ("single", "multiple", "approximate")
+#: render.method of the approximate mode (renderer.approximate)
+APPROXIMATE_METHODS = ("octaves",)
+#: render.octaves when not given: (count, a, b, c), fitted by validation/accuracy/approximate.py on scenes
+#: that are not the ones its error is reported on (docs/approximate.md)
+OCTAVES = (8, 0.3, 0.6, 0.6)
 #: texels per side of a shadow map when render.shadow_map is not given
 SHADOW_MAP_RESOLUTION = 384
 

@@ -1,0 +1,114 @@
+"""Approximate multiple scattering (``render: {scattering: approximate}``), and its measured error.
+
+``method: octaves`` (Wrenninge, "Oz: the great and volumetric", SIGGRAPH 2013 talk; also in "Production
+Volume Rendering", SIGGRAPH 2017 course): the single-scattering quadrature is kept as it is, and at every
+node each light's E_l T_l p(theta) becomes sum_i c^i E_l T_l^(a^i) p(theta; g b^i): octave i sees the light
+through a^i times the optical depth (light that scattered many times has crossed less material on its
+way), with b^i times the phase function's asymmetry (many scatterings forget the direction) and weight
+c^i. No extra shadow rays: T_l^(a^i) comes from the exact T_l the node computes anyway. The environment
+(the background, a uniform colour or a sky) lights the media as a uniform ambient radiance equal to its
+solid-angle mean, which is exact for a conservative medium (albedo 1) in a uniform environment (the white
+furnace) and ignores the cloud's shadowing of the sky otherwise. Order 1 of the lights is not exact in
+this mode (the first octave is single scattering; the others add to it).
+
+The approximation's error is measured, not assumed: ``approximation_error`` renders a sample of cloud
+pixels both ways, the approximate mode and the unbiased estimator (single scattering + Monte Carlo
+paths of renderer.multiple), and estimates the image's relative RMSE against the unbiased image,
+relative to the scattered light (docs/approximate.md says how good that estimate is).
+"""
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from ..errors import SceneError
+from ..kernels.multiple import render_paths
+from ..kernels.records import PathSettings
+from ..kernels.single import render_pixels
+from .pack import background_along, pixel_directions, single_octave
+
+#: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel
+ERROR_PIXELS = 128
+ERROR_PATHS = 64
+
+
+def check_approximate(scene):
+    """Refuse what the approximate mode cannot take (one line naming the file and the key)."""
+    if scene.ambient is not None:
+        raise SceneError(scene.path, "ambient", "not allowed with render.scattering: approximate (the background "
+                                                "lights the medium as its own ambient term; ambient would count "
+                                                "it twice)")
+
+
+@dataclass(frozen=True)
+class ApproximationError:
+    """The approximate image's estimated relative RMSE against the unbiased image (``rel_rmse``), relative
+    to the mean scattered radiance; ``stderr`` the standard error of that estimate (from the sampling of
+    pixels and the paths' noise); ``pixels`` sampled cloud pixels of ``cloud_pixels``, ``paths`` per pixel."""
+    rel_rmse: float
+    stderr: float
+    pixels: int
+    cloud_pixels: int
+    paths: int
+
+
+def sample_pixels(alpha, n, seed):
+    """Up to n cloud pixels (alpha > 0), drawn without replacement by a generator keyed by seed, sorted."""
+    flat = np.flatnonzero(alpha.ravel() > 0.0)
+    if flat.size <= n:
+        return flat
+    return np.sort(np.random.default_rng([seed, 0xA55]).choice(flat, n, replace=False))
+
+
+def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXELS, paths=ERROR_PATHS):
+    """An ApproximationError of the approximate ``image`` (the tile ``window`` of the frame, H x W x 4)
+    rendered from ``packed``: on a sample of its cloud pixels the unbiased estimate U (single scattering
+    with exact order 1, plus ``paths`` Monte Carlo paths of the orders above) against A, the image's pixel.
+
+    The image's squared error is the mean over all pixels of (A - U)^2; background pixels have none, so
+    it is the cloud fraction times the mean over cloud pixels, estimated on the sample, less the paths'
+    own variance (their squared standard error, which inflates (A - U)^2 on average by exactly that).
+    Divided by the mean scattered radiance: U less the background seen through the media."""
+    (r_lo, r_hi), (c_lo, c_hi) = window
+    tile = image[..., 3]
+    chosen = sample_pixels(tile, pixels, seed)
+    if chosen.size == 0:
+        return ApproximationError(0.0, 0.0, 0, 0, paths)
+    cloud = int(np.count_nonzero(tile > 0.0))
+    tw = c_hi - c_lo
+    rows, cols = r_lo + chosen // tw, c_lo + chosen % tw
+    camera, records, quad = packed.camera, packed.records, packed.quadrature
+    single = records._replace(octaves=single_octave(), ambient=np.zeros(3))
+    settings = PathSettings(max_order=int(scene.render.max_order), rr_order=4, paths=int(paths))
+    h, w = scene.image.height, scene.image.width
+    exact = np.zeros((h, w, 4))
+    nearest = np.full((h, w), np.inf)
+    mean = np.zeros((h, w, 3))
+    stderr = np.zeros((h, w, 3))
+
+    def pixel(k):  # each pixel writes its own entries; every random number is keyed by the pixel
+        i, j = int(rows[k]), int(cols[k])
+        render_pixels(camera, single, quad, np.int64(i), np.int64(j), np.int64(j + 1), exact, nearest)
+        render_paths(camera, single, quad, settings, np.int64(i), np.int64(j), np.int64(j + 1), mean, stderr)
+
+    with ThreadPoolExecutor(numba.get_num_threads()) as pool:
+        list(pool.map(pixel, range(chosen.size)))
+    unbiased = exact[rows, cols, :3] + mean[rows, cols]
+    approx = image[rows - r_lo, cols - c_lo, :3]
+    noise2 = stderr[rows, cols] ** 2
+    sq = ((approx - unbiased) ** 2 - noise2).mean(axis=1)  # per sampled pixel, over the channels
+    frac = cloud / tile.size
+    background = background_along(records.background, pixel_directions(camera, rows, cols))
+    scattered = unbiased - background * (1.0 - exact[rows, cols, 3:4])
+    mean_scattered = frac * float(scattered.mean())
+    if mean_scattered <= 0.0:
+        return ApproximationError(np.inf, np.inf, int(chosen.size), cloud, paths)
+    ms = max(frac * float(sq.mean()), 0.0)
+    rel = np.sqrt(ms) / mean_scattered
+    # the estimate's own spread: the sampling error of the mean of sq, through the square root
+    se_ms = frac * float(sq.std(ddof=1)) / np.sqrt(sq.size) if sq.size > 1 else np.inf
+    se = 0.5 * se_ms / (np.sqrt(ms) * mean_scattered) if ms > 0 else np.inf
+    return ApproximationError(float(rel), float(se), int(chosen.size), cloud, int(paths))

@@ -1,0 +1,177 @@
+"""The approximate multiple-scattering mode (``render: {scattering: approximate}``) against converged unbiased
+multiple scattering: fit the octaves on some scenes, report the error on others, time and error estimate.
+
+Scenes (64 x 48 unless --size; ambient removed everywhere: in both modes the background lights the media):
+- FIT: ellipsoids side-lit (HG 0.85), the carved blob side-lit (Rayleigh), the bank under a grazing sun,
+  ellipsoids back-lit (double HG). The octaves (count, a, b, c) are fitted on these alone.
+- REPORT: cumulus front-lit, cumulus back-lit, the shipped cumulus (side-lit from the front right), the bank
+  front-lit, the deck under a low sun, the small wispy puffs. None of them is used to fit.
+
+Unbiased reference per scene: single scattering at quality ``fine`` plus ``--paths`` Monte Carlo paths per
+pixel of renderer.multiple, kept in validation/results/approximate/REF.npz (mean and standard error).
+The error of an image A is relative to the scattered light:
+    sqrt(mean((A - U)^2) - mean(se_U^2)) / mean(U - background * T)
+(the reference's own variance is subtracted; U less the background seen through the media is the light
+the approximation approximates). Printed for single scattering, the octaves and their error estimate.
+
+    python -m validation.accuracy.approximate references [--paths 512] [--size 64]
+    python -m validation.accuracy.approximate fit
+    python -m validation.accuracy.approximate report [--no-csv]
+    python -m validation.accuracy.approximate timing --size 512 [--repeats 3]
+"""
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import replace
+
+import numpy as np
+
+import cloudmeta as cm
+from cloudmeta.renderer.approximate import approximation_error
+from cloudmeta.renderer.multiple import render_multiple
+from cloudmeta.renderer.pack import background_table, background_along, pack_scene, pixel_directions
+from validation.common import RESULTS, ROOT, alternate, parse, parser, run_main, with_settings, write_csv
+
+SUITE = ROOT / "scenes" / "suite"
+FIT = {"ellipsoids_side": SUITE / "ellipsoids_side.yaml", "carved_side": SUITE / "carved_side.yaml",
+       "bank_grazing": SUITE / "bank_grazing.yaml", "ellipsoids_back": SUITE / "ellipsoids_back.yaml"}
+REPORT = {"cumulus_front": SUITE / "cumulus_front.yaml", "cumulus_back": SUITE / "cumulus_back.yaml",
+          "cumulus_side": ROOT / "scenes" / "cumulus.yaml", "bank_front": SUITE / "bank_front.yaml",
+          "deck_low_sun": SUITE / "deck_grazing.yaml", "wispy_puffs": SUITE / "puffs_front.yaml"}
+FOLDER = RESULTS / "approximate"
+
+
+def scene_of(path, size, mode="single", octaves=None):
+    s = cm.load_scene(path)
+    h = max(1, round(size * s.image.height / s.image.width))
+    s = cm.load_scene(path, width=size, height=h)
+    s = replace(s, ambient=None)
+    settings = dict(scattering=mode)
+    if octaves is not None:
+        settings["octaves"] = tuple(octaves)
+    return with_settings(s, **settings)
+
+
+def reference(name, path, size, paths):
+    """(U, se, background * T) of the scene: cached in FOLDER/name.npz."""
+    f = FOLDER / f"{name}_{size}_{paths}.npz"
+    if f.exists():
+        z = np.load(f)
+        return z["u"], z["se"], z["bt"], float(z["seconds"])
+    s = with_settings(scene_of(path, size, "multiple"), quality="fine")
+    t0 = time.perf_counter()
+    single = cm.render(s, progress=False)
+    mean, se = render_multiple(s, paths=paths)
+    seconds = time.perf_counter() - t0
+    bt = background_times_t(s, single)
+    FOLDER.mkdir(parents=True, exist_ok=True)
+    np.savez(f, u=single[..., :3] + mean, se=se, bt=bt, seconds=seconds)
+    return single[..., :3] + mean, se, bt, seconds
+
+
+def background_times_t(scene, image):
+    """(H, W, 3): the background seen through the media at each pixel's centre."""
+    h, w = scene.image.height, scene.image.width
+    cam = pack_scene(scene, 0).camera
+    rows, cols = np.divmod(np.arange(h * w), w)
+    bg = background_along(background_table(scene), pixel_directions(cam, rows, cols)).reshape(h, w, 3)
+    return bg * (1.0 - image[..., 3:4].astype(np.float64))
+
+
+def rel_error(a, u, se, bt):
+    ms = max(float(np.mean((a - u) ** 2) - np.mean(se ** 2)), 0.0)
+    return np.sqrt(ms) / float(np.mean(u - bt))
+
+
+def approx_image(path, size, octaves=None):
+    s = scene_of(path, size, "approximate", octaves)
+    return s, cm.render(s, progress=False)
+
+
+def references(args):
+    for name, path in {**FIT, **REPORT}.items():
+        u, se, bt, sec = reference(name, path, args.size, args.paths)
+        noise = np.sqrt(np.mean(se ** 2)) / float(np.mean(u - bt))
+        print(f"{name:16s} reference {sec:7.1f} s, its noise {noise:.2e} of the scattered light", flush=True)
+
+
+def fit(args):
+    refs = {name: reference(name, path, args.size, args.paths) for name, path in FIT.items()}
+    best = None
+    grid = itertools.product((8, 16), (0.1, 0.2, 0.3, 0.5), (0.3, 0.6, 0.85), (0.6, 0.75, 0.85, 0.95))
+    for count, a, b, c in grid:
+        errs = [rel_error(approx_image(FIT[n], args.size, (count, a, b, c))[1][..., :3].astype(np.float64), *refs[n][:3])
+                for n in FIT]
+        score = float(np.sqrt(np.mean(np.square(errs))))
+        if best is None or score < best[0]:
+            best = (score, (count, a, b, c), errs)
+            print(f"best so far: octaves {best[1]}: rms {score:.3f} (" +
+                  ", ".join(f"{n} {e:.3f}" for n, e in zip(FIT, errs)) + ")", flush=True)
+    return {"octaves": best[1], "score": best[0]}
+
+
+def report(args):
+    rows = []
+    for name, path in REPORT.items():
+        u, se, bt, ref_sec = reference(name, path, args.size, args.paths)
+        s1 = with_settings(scene_of(path, args.size), quality="default")
+        t0 = time.perf_counter()
+        single = cm.render(s1, progress=False)
+        t_single = time.perf_counter() - t0
+        s, _ = approx_image(path, args.size)
+        t0 = time.perf_counter()
+        approx = cm.render(s, progress=False)
+        t_approx = time.perf_counter() - t0
+        e_single = rel_error(single[..., :3].astype(np.float64), u, se, bt)
+        e_approx = rel_error(approx[..., :3].astype(np.float64), u, se, bt)
+        packed = pack_scene(s, 0)
+        t0 = time.perf_counter()
+        est = approximation_error(s, approx.astype(np.float64), packed, ((0, s.image.height), (0, s.image.width)))
+        t_est = time.perf_counter() - t0
+        rows.append(dict(scene=name, single=f"{e_single:.4f}", octaves=f"{e_approx:.4f}",
+                         estimate=f"{est.rel_rmse:.4f}", estimate_se=f"{est.stderr:.4f}",
+                         ratio=f"{est.rel_rmse / e_approx:.2f}", t_single=f"{t_single:.2f}",
+                         t_octaves=f"{t_approx:.2f}", t_estimate=f"{t_est:.1f}", t_reference=f"{ref_sec:.0f}"))
+        print(f"{name:16s} single {e_single:.3f}  octaves {e_approx:.3f}  estimate {est.rel_rmse:.3f} "
+              f"+- {est.stderr:.3f} ({est.rel_rmse / e_approx:.2f}x)  time single {t_single:.2f} s, octaves "
+              f"{t_approx:.2f} s, estimate {t_est:.1f} s", flush=True)
+    if not args.no_csv:
+        write_csv(RESULTS / "approximate.csv", rows)
+    return {"rows": rows}
+
+
+def timing(args):
+    """512 x 512 (--size 512 to get it), default quality: single scattering (the scene file as it is) against the
+    approximate mode (ambient removed), the two alternating, --repeats rounds after one untimed."""
+    out = {}
+    for name in ("cumulus.yaml", "cumulus_backlit.yaml"):
+        path = ROOT / "scenes" / name
+        single = cm.load_scene(path, width=args.size, height=args.size)
+        approx = with_settings(replace(single, ambient=None), scattering="approximate")
+
+        def run(scene):
+            t0 = time.perf_counter()
+            cm.render(scene, progress=False)
+            return time.perf_counter() - t0
+        times = alternate({"single": (single,), "octaves": (approx,)}, args.repeats, run)
+        med = {k: float(np.median(v)) for k, v in times.items()}
+        print(f"{name}: single {med['single']:.2f} s ({min(times['single']):.2f}-{max(times['single']):.2f}), "
+              f"octaves {med['octaves']:.2f} s ({min(times['octaves']):.2f}-{max(times['octaves']):.2f}): "
+              f"{med['octaves'] / med['single']:.2f}x", flush=True)
+        out[name] = med
+    return out
+
+
+def main(argv=None, quick=False):
+    ap = parser(__doc__, no_csv=True)
+    ap.add_argument("what", choices=("references", "fit", "report", "timing"))
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--paths", type=int, default=512)
+    args, quick = parse(ap, argv, quick)
+    return {"references": references, "fit": fit, "report": report, "timing": timing}[args.what](args)
+
+
+if __name__ == "__main__":
+    run_main(main)
