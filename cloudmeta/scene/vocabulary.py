@@ -29,7 +29,7 @@ SCATTERING_MODES = ("single", "multiple", "approximate")
 APPROXIMATE_METHODS = ("octaves",)
 #: render.octaves when not given: (count, a, b, c), fitted by validation/accuracy/approximate.py on scenes
 #: that are not the ones its error is reported on (docs/approximate.md)
-OCTAVES = (8, 0.3, 0.6, 0.6)
+OCTAVES = (4, 0.5, 0.6, 0.45)
 #: texels per side of a shadow map when render.shadow_map is not given
 SHADOW_MAP_RESOLUTION = 384
 
