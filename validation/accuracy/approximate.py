@@ -18,6 +18,7 @@ the approximation approximates). Printed for single scattering, the octaves and 
     python -m validation.accuracy.approximate fit
     python -m validation.accuracy.approximate report [--no-csv]
     python -m validation.accuracy.approximate timing --size 512 [--repeats 3]
+    python -m validation.accuracy.approximate figure --size 128 --paths 256   (docs/approximate_cumulus.png)
 """
 from __future__ import annotations
 
@@ -164,14 +165,59 @@ def timing(args):
     return out
 
 
+def figure(args):
+    """docs/approximate_cumulus.png: the shipped cumulus front- and back-lit, single scattering (the scene file
+    as it is), the octaves and multiple scattering (--paths per pixel), --size pixels square, each with its
+    time and its relative RMSE against the multiple-scattering image (its noise subtracted)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from cloudmeta.scene.colour import encode_srgb
+    from cloudmeta.renderer import render_frame
+    fig, axes = plt.subplots(2, 3, figsize=(9, 6.4), dpi=100)
+    for row, name in enumerate(("cumulus.yaml", "cumulus_backlit.yaml")):
+        path = ROOT / "scenes" / name
+        shipped = cm.load_scene(path, width=args.size, height=args.size)
+        multi = with_settings(replace(shipped, ambient=None), scattering="multiple")
+        approx = with_settings(replace(shipped, ambient=None), scattering="approximate")
+        t0 = time.perf_counter()
+        det = cm.render(with_settings(multi, scattering="single"), progress=False)
+        mean, se = render_multiple(multi, paths=args.paths)
+        t_ms = time.perf_counter() - t0
+        u = det[..., :3] + mean
+        bt = background_times_t(multi, det)
+        shots = []
+        for label, scene in (("single scattering (as shipped)", shipped), ("approximate: octaves", approx)):
+            t0 = time.perf_counter()
+            result = render_frame(scene, progress=False, error=scene is approx)
+            took = time.perf_counter() - t0
+            err = rel_error(result.image[..., :3].astype(np.float64), u, se, bt)
+            extra = (f"; estimated {result.approximation.rel_rmse:.2f}" if result.approximation is not None else "")
+            shots.append((result.image, f"{label}\n{took:.1f} s, error {err:.2f}{extra}"))
+        noise = np.sqrt(np.mean(se ** 2)) / float(np.mean(u - bt))
+        shots.append((np.dstack([u, det[..., 3:]]), f"multiple scattering, {args.paths} paths\n{t_ms:.0f} s, "
+                                                     f"its noise {noise:.2f}"))
+        for col, (img, title) in enumerate(shots):
+            ax = axes[row, col]
+            ax.imshow(encode_srgb(np.asarray(img, np.float32)[..., :3], -1.0, shipped.render.colourspace))
+            ax.set_title(title, fontsize=8)
+            ax.axis("off")
+    fig.suptitle(f"The 77-ball cumulus, {args.size} x {args.size}, exposure -1; errors: relative RMSE against the "
+                 "scattered light of the multiple-scattering image", fontsize=8)
+    fig.tight_layout()
+    out = ROOT / "docs" / "approximate_cumulus.png"
+    fig.savefig(out)
+    print(f"wrote {out}")
+
+
 def main(argv=None, quick=False):
     ap = parser(__doc__, no_csv=True)
-    ap.add_argument("what", choices=("references", "fit", "report", "timing"))
+    ap.add_argument("what", choices=("references", "fit", "report", "timing", "figure"))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--paths", type=int, default=512)
     args, quick = parse(ap, argv, quick)
-    return {"references": references, "fit": fit, "report": report, "timing": timing}[args.what](args)
+    return {"references": references, "fit": fit, "report": report, "timing": timing, "figure": figure}[args.what](args)
 
 
 if __name__ == "__main__":
