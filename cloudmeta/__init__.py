@@ -29,11 +29,12 @@ _EXPORTS = {
     "read_exr": "io", "write_exr": "io", "write_png": "io",
     "load_scene": "scene", "render_frame": "renderer", "RenderResult": "renderer",
     "render_frames": "cluster",
+    "generate": "generate", "write_scene": "generate",
 }
 
 __all__ = ["Blob", "field", "first_hit", "gradient", "normal", "optical_depth", "roots", "segments", "load_scene",
            "render", "render_frame", "RenderResult", "render_frames", "write_exr", "read_exr", "write_png", "CloudmetaError", "InputError",
-           "SceneError"]
+           "SceneError", "generate", "write_scene"]
 __version__ = "0.1.0"
 
 

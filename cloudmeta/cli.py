@@ -1,4 +1,4 @@
-"""The cloudmeta command: render a scene to OpenEXR (and PNG), inspect its field in 3D."""
+"""The cloudmeta command: render a scene to OpenEXR (and PNG), inspect its field in 3D, generate a cloud."""
 from __future__ import annotations
 
 import argparse
@@ -47,7 +47,8 @@ def _render(args):
     # every output is created now as a temporary file and renamed into place only when all are written
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
-        image, error, took = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate)
+        image, error, took, approximation = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(),
+                                                          error=estimate)
         encode_outputs(image, tmps, scene.render.colourspace, exposure, error)
     if error is not None:
         from .renderer.estimate import estimated_rel_rmse
@@ -55,6 +56,10 @@ def _render(args):
                   f"quality {scene.render.quality}: {QUALITY_TARGETS.get(scene.render.quality, 'none')}")
         print(f"cloudmeta: estimated relative RMSE {estimated_rel_rmse(image, error):.2e} (target of {target}; "
               f"per pixel in the EXR's channels error.R/G/B)")
+    if approximation is not None:
+        print(f"cloudmeta: the approximation's estimated relative RMSE against unbiased multiple scattering: "
+              f"{approximation.rel_rmse:.3f} +- {approximation.stderr:.3f} (from {approximation.pixels} of "
+              f"{approximation.cloud_pixels} cloud pixels, {approximation.paths} paths each; docs/approximate.md)")
     print(f"cloudmeta: rendered in {took:.2f} s; wrote {', '.join(path for _, path, _ in outputs)}")
     return 0
 
@@ -77,7 +82,8 @@ def _outputs(args, scene):
 
 
 def _render_image(scene, progress, error=False):
-    """(image, error or None, seconds): the render, on a thread of its own (``interruptible``)."""
+    """(image, error or None, seconds, the approximation's error or None): the render, on a thread of its own
+    (``interruptible``)."""
     import numpy as np
 
     from .renderer import render_frame
@@ -89,7 +95,7 @@ def _render_image(scene, progress, error=False):
     if not np.all(np.isfinite(image)):
         raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
                                            "the lights' irradiance or intensity (README: Limits)")
-    return image, err, took
+    return image, err, took, result.approximation
 
 
 def _frames(args):
@@ -202,11 +208,58 @@ def build_parser():
     i.add_argument("--resolution", type=int, default=96, help="grid samples along the longest side (default 96)")
     i.add_argument("--slice", help="one plane only, e.g. z=2.0, coloured by sigma_t with the contour F = T")
     i.set_defaults(run=_inspect)
+    g = sub.add_parser("generate", help="write a procedural cloud, deterministic by seed: a scene (YAML) and its "
+                                        "balls file (CSV) beside it (docs/generate.md)")
+    g.add_argument("kind", help="cumulus, stratocumulus, tower or cumulonimbus")
+    g.add_argument("-o", "--output", required=True, help="the scene file to write (.yaml); the balls go to the same "
+                                                        "name with .csv")
+    g.add_argument("--balls", type=_positive, default=3000, help="number of metaballs, exactly (default 3000)")
+    g.add_argument("--seed", type=_seed, default=1, help="random seed, an integer >= 0 (default 1)")
+    g.add_argument("--size", type=float, default=10.0,
+                   help="the cloud's horizontal extent along x, in scene units (default 10); its base is at z = 0")
+    g.add_argument("-p", "--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="a parameter of the kind (repeatable), e.g. -p height_ratio=1.0; see docs/generate.md")
+    g.add_argument("--width", type=_positive, help="image width of the written scene (default 512, 640 for a deck)")
+    g.add_argument("--height", type=_positive, help="image height of the written scene (default 512, 360 for a deck)")
+    g.add_argument("--overwrite", action="store_true",
+                   help="replace the scene and balls file if they exist (only files that cloudmeta generate wrote)")
+    g.set_defaults(run=_generate)
     c = sub.add_parser("compile", help="compile the kernels for every kind of scene now (once per machine; "
                                        "for worker images, clusters and test runs)")
     c.add_argument("--jobs", type=_positive, default=2, help="processes side by side (default 2)")
     c.set_defaults(run=_compile)
     return parser
+
+
+def _seed(text):
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text}")
+    return value
+
+
+def _generate(args):
+    """``cloudmeta generate``: the paths are checked first, then the cloud is built and both files written."""
+    from .generate import check_scene_paths, generate, parse_param, write_scene
+    params = dict(parse_param(text, "-p") for text in args.param)
+    check_scene_paths(args.output, None, args.overwrite)
+    parts = [f"cloudmeta generate {args.kind} --balls {args.balls} --seed {args.seed}"]
+    if args.size != 10.0:
+        parts.append(f"--size {args.size:g}")
+    parts += [f"-p {text}" for text in args.param]
+    if args.width is not None:
+        parts.append(f"--width {args.width}")
+    if args.height is not None:
+        parts.append(f"--height {args.height}")
+    parts.append(f"-o {args.output}")
+    start = time.perf_counter()
+    cloud = generate(args.kind, balls=args.balls, seed=args.seed, size=args.size, **params)
+    yaml_path, csv_path = write_scene(cloud, args.output, width=args.width, height=args.height,
+                                      overwrite=args.overwrite, command=" ".join(parts))
+    took = time.perf_counter() - start
+    print(f"cloudmeta: wrote {yaml_path} and {os.path.basename(csv_path)}: a {len(cloud):,}-ball {cloud.kind} "
+          f"(seed {cloud.seed}, size {cloud.size:g}, {cloud.params['levels']} levels) in {took:.2f} s")
+    return 0
 
 
 def _compile(args):
