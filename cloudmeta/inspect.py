@@ -140,7 +140,11 @@ def _check_bounds(bounds):
 
 
 def _default_bounds(scene_or_blob):
-    lo, hi = scene_or_blob.bbox if isinstance(scene_or_blob, Blob) else scene_or_blob.bbox()
+    """The box of the inside (Blob.inside_bbox: carving balls outside it are left out), padded."""
+    blobs = [scene_or_blob] if isinstance(scene_or_blob, Blob) else [
+        thing.blob for thing in scene_or_blob.media + scene_or_blob.surfaces]
+    boxes = [blob.inside_bbox() for blob in blobs]
+    lo, hi = np.min([b for b, _ in boxes], axis=0), np.max([b for _, b in boxes], axis=0)
     pad = PAD * float((hi - lo).max())
     return lo - pad, hi + pad
 

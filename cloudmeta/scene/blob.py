@@ -189,6 +189,15 @@ class Blob:
         """(lo, hi) of the union of the balls' supports."""
         return self.bounds[:, :3].min(axis=0), self.bounds[:, 3:].max(axis=0)
 
+    def inside_bbox(self):
+        """(lo, hi) of the union of the supports of the balls of positive weight: the inside F >= T (T > 0)
+        lies within it, since outside every positive ball F <= 0. A cloud cut flat by one wide negative ball
+        (cloudmeta generate) is boxed tightly. The bbox when no ball is positive (nothing is inside)."""
+        positive = self.bounds[self.weights > 0]
+        if len(positive) == 0:
+            return self.bbox
+        return positive[:, :3].min(axis=0), positive[:, 3:].max(axis=0)
+
     @property
     def bvh(self):
         """(node_box, node_a, node_b, node_n, items): the BVH over the supports, built on first use."""
