@@ -64,3 +64,20 @@ def test_wrong_types_and_values_are_input_errors(kwargs, match):
 def test_render_of_a_non_scene_is_an_input_error():
     with pytest.raises(cm.InputError, match="scene: expected a cloudmeta Scene"):
         cm.render(cm.Blob([[0, 0, 0]], [1.0]))
+
+
+def test_inside_bbox_leaves_out_carving_balls_and_holds_the_inside():
+    """A wide negative ball (the generator's base cutter) widens bbox, not inside_bbox, and every point with
+    F >= T lies in inside_bbox (outside every positive ball F <= 0 < T)."""
+    blob = cm.Blob([[0, 0, 1], [0.8, 0, 1.2], [0, 0, -3]], [[1.0] * 3, [0.7] * 3, [20.0, 20.0, 3.0]],
+                [1.0, 0.8, -50.0])
+    lo, hi = blob.inside_bbox()
+    np.testing.assert_allclose(lo, [-1.0, -1.0, 0.0])
+    np.testing.assert_allclose(hi, [1.5, 1.0, 2.0])
+    assert np.all(blob.bbox[0] < lo) and np.all(blob.bbox[1] >= hi)
+    pts = np.random.default_rng(3).uniform(blob.bbox[0], blob.bbox[1], size=(200000, 3))
+    inside = pts[cm.field(blob, pts) >= blob.threshold]
+    assert len(inside) > 0
+    assert np.all((inside >= lo) & (inside <= hi))
+    only_negative = cm.Blob([[0, 0, 0]], [1.0], [-1.0])
+    np.testing.assert_array_equal(only_negative.inside_bbox(), only_negative.bbox)
