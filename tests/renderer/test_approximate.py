@@ -96,3 +96,21 @@ def test_the_approximation_measures_its_error(tmp_path):
     truth = np.sqrt(np.mean(diff ** 2)) / full[..., :3].mean()
     assert truth > 0.02  # the orders above 1 matter in this cloud
     assert 0.7 * truth < est.rel_rmse < 1.4 * truth
+
+
+def test_cli_prints_the_approximations_measured_error(tmp_path):
+    """`cloudmeta render --error` of an approximate scene prints the approximation's estimate, the same
+    number render_frame gives (every random number is keyed by the pixel)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    scene = cloud(tmp_path, "{quality: draft, scattering: approximate, max_order: 8}", size=8)
+    run = subprocess.run([sys.executable, "-m", "cloudmeta.cli", "render", scene.path, "-o", str(tmp_path / "a.exr"),
+                          "--error", "-q"], capture_output=True, text=True, cwd=tmp_path,
+                         env=dict(os.environ, PYTHONPATH=str(root)))
+    assert run.returncode == 0, run.stderr
+    line = run.stdout.split("against unbiased multiple scattering: ")[1]
+    printed = float(line.split()[0])
+    assert printed == pytest.approx(render_frame(scene, progress=False, error=True).approximation.rel_rmse, abs=1e-3)
