@@ -28,6 +28,7 @@ from ..errors import SceneError
 from ..kernels.multiple import render_paths
 from ..kernels.records import PathSettings
 from ..kernels.single import render_pixels
+from .multiple import RR_ORDER
 from .pack import background_along, pixel_directions, single_octave
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel
@@ -82,7 +83,7 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     rows, cols = r_lo + chosen // tw, c_lo + chosen % tw
     camera, records, quad = packed.camera, packed.records, packed.quadrature
     single = records._replace(octaves=single_octave(), ambient=np.zeros(3))
-    settings = PathSettings(max_order=int(scene.render.max_order), rr_order=4, paths=int(paths))
+    settings = PathSettings(max_order=int(scene.render.max_order), rr_order=RR_ORDER, paths=int(paths))
     h, w = scene.image.height, scene.image.width
     exact = np.zeros((h, w, 4))
     nearest = np.full((h, w), np.inf)

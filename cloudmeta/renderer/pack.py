@@ -20,6 +20,7 @@ from ..kernels.kinds import DENSITY_MODES, LIGHTS, PHASES
 from ..kernels.records import (BVH, Camera, Lights, MapPieces, Media, Quadrature, SceneRecords, ShadowMaps,
                                Surfaces)
 from ..kernels.shadowmap import trace_texel_chunk
+from ..scene.atmosphere import sky_mean
 from ..scene.vocabulary import SHADOW_MAP_RESOLUTION
 from .bands import n_chunks
 from .quality import Quality, scene_quality
@@ -126,7 +127,7 @@ def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
     octaves = single_octave()
     if scene.render.scattering == "approximate":  # renderer.approximate: the octaves, the environment as ambient
         octaves = octave_table(*scene.render.octaves)
-        ambient = sphere_mean(background)
+        ambient = sky_mean(background)  # a one-row table is its own mean
     return SceneRecords(media=med, surfaces=surfaces, lights=lights, background=background, ambient=ambient,
                         octaves=octaves)
 
@@ -140,15 +141,6 @@ def octave_table(count, a, b, c):
     """The approximate mode's octaves as kernels.single.octave_phase reads them: rows (a^i, b^i, c^i)."""
     i = np.arange(count, dtype=np.float64)
     return np.ascontiguousarray(np.stack([a ** i, b ** i, c ** i], axis=1))
-
-
-def sphere_mean(table):
-    """The solid-angle mean of a background table (rows over elevation -90 .. 90 degrees, or one row)."""
-    if table.shape[0] == 1:
-        return table[0].copy()
-    elevation = np.linspace(-np.pi / 2, np.pi / 2, table.shape[0])
-    weight = np.cos(elevation)
-    return (weight[:, None] * table).sum(axis=0) / weight.sum()
 
 
 def background_along(table, directions):

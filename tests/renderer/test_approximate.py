@@ -9,7 +9,8 @@ import pytest
 
 from cloudmeta.errors import SceneError
 from cloudmeta.renderer import render, render_frame
-from cloudmeta.renderer.pack import octave_table, sphere_mean
+from cloudmeta.renderer.pack import octave_table
+from cloudmeta.scene.atmosphere import sky_mean
 from cloudmeta.scene import load_scene
 
 BALLS = """[{center: [0, 0, 0], radius: 1.6}, {center: [0.9, 0.2, 0.3], radius: 1.2},
@@ -63,12 +64,12 @@ def test_white_furnace(tmp_path):
     np.testing.assert_allclose(img[..., :3], np.broadcast_to([0.5, 0.7, 1.0], img[..., :3].shape), rtol=2e-3)
 
 
-def test_octave_table_and_sphere_mean():
+def test_octave_table_and_the_environments_mean():
     np.testing.assert_allclose(octave_table(3, 0.5, 0.25, 0.8), [[1, 1, 1], [0.5, 0.25, 0.8], [0.25, 0.0625, 0.64]])
     table = np.zeros((181, 3))
     table[91:] = 1.0  # 1 above the horizon, 0 below: the mean over the sphere is about 1/2
-    assert sphere_mean(table)[0] == pytest.approx(0.5, abs=0.01)
-    np.testing.assert_array_equal(sphere_mean(np.array([[0.1, 0.2, 0.3]])), [0.1, 0.2, 0.3])
+    assert sky_mean(table)[0] == pytest.approx(0.5, abs=0.01)
+    np.testing.assert_array_equal(sky_mean(np.array([[0.1, 0.2, 0.3]])), [0.1, 0.2, 0.3])
 
 
 def test_settings_are_validated(tmp_path):
