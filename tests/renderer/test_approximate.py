@@ -115,3 +115,18 @@ def test_cli_prints_the_approximations_measured_error(tmp_path):
     line = run.stdout.split("against unbiased multiple scattering: ")[1]
     printed = float(line.split()[0])
     assert printed == pytest.approx(render_frame(scene, progress=False, error=True).approximation.rel_rmse, abs=1e-3)
+
+
+def test_bit_identical_whatever_the_thread_count(tmp_path):
+    import numba
+    scene = cloud(tmp_path, "{quality: draft, scattering: approximate, max_order: 8}", size=10)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = render_frame(scene, progress=False, error=True)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = render_frame(scene, progress=False, error=True)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(one.image, two.image)
+    assert one.approximation == two.approximation
