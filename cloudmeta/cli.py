@@ -47,14 +47,13 @@ def _render(args):
     # every output is created now as a temporary file and renamed into place only when all are written
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
-        image, error, took, approximation = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(),
+        image, error, took, approximation, estimated = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(),
                                                           error=estimate)
         encode_outputs(image, tmps, scene.render.colourspace, exposure, error)
     if error is not None:
-        from .renderer.estimate import estimated_rel_rmse
         target = (f"render.error {scene.render.error:g}" if scene.render.error is not None else
                   f"quality {scene.render.quality}: {QUALITY_TARGETS.get(scene.render.quality, 'none')}")
-        print(f"cloudmeta: estimated relative RMSE {estimated_rel_rmse(image, error):.2e} (target of {target}; "
+        print(f"cloudmeta: estimated relative RMSE {estimated:.2e} (target of {target}; "
               f"per pixel in the EXR's channels error.R/G/B)")
     if approximation is not None:
         print(f"cloudmeta: the approximation's estimated relative RMSE against unbiased multiple scattering: "
@@ -82,8 +81,8 @@ def _outputs(args, scene):
 
 
 def _render_image(scene, progress, error=False):
-    """(image, error or None, seconds, the approximation's error or None): the render, on a thread of its own
-    (``interruptible``)."""
+    """(image, error or None, seconds, the approximation's error or None, the estimated relative RMSE or None):
+    the render, on a thread of its own (``interruptible``)."""
     import numpy as np
 
     from .renderer import render_frame
@@ -95,7 +94,7 @@ def _render_image(scene, progress, error=False):
     if not np.all(np.isfinite(image)):
         raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
                                            "the lights' irradiance or intensity (README: Limits)")
-    return image, err, took, result.approximation
+    return image, err, took, result.approximation, result.estimated
 
 
 def _frames(args):

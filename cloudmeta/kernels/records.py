@@ -69,10 +69,12 @@ SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "backg
 #: the other 8 sit among the 15 (gauss_col, kronrod_col); tail (2, 7) maps J at the Gauss nodes to its two
 #: highest Legendre coefficients. Then the render's quality settings (cloudmeta.renderer.quality.resolve_quality):
 #: max_tau, max_length, max_angle, cutoff, u_stop = -log(cutoff) (the view optical depth past which
-#: nothing is shaded; inf for cutoff 0), tol_t (the root tolerance on t, absolute), tolerance
+#: nothing is shaded; inf for cutoff 0), tol_t (the root tolerance on t, absolute), tolerance, and
+#: light_scale (the frame's scattered-light scale that tolerance is relative to, cloudmeta.renderer.pilot; 0:
+#: relative to each ray's brightest J instead)
 Quadrature = namedtuple("Quadrature", ["gauss_x", "gauss_lag", "kronrod_x", "kronrod_lag", "gauss_col",
                                        "kronrod_col", "tail", "fine_y", "fine_w", "max_tau", "max_length",
-                                       "max_angle", "cutoff", "u_stop", "tol_t", "tolerance"])
+                                       "max_angle", "cutoff", "u_stop", "tol_t", "tolerance", "light_scale"])
 
 #: a pinhole camera (docs/model.md §8): position, forward, and right / up scaled to the image plane's
 #: half-extent at distance 1 (3,) each; the image size, samples per pixel and the jitter seed

@@ -218,8 +218,9 @@ def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
         for g in range(n_g + kronrod_col.shape[0]):
             if g == n_g:
                 _exp_weights(hh, quad.gauss_lag, quad.fine_y, quad.fine_w, node_w)
-                # J's error, weighted by e^-u, is then below tolerance * j_max: deep steps may be rougher
-                allowed = quad.tolerance * j_max
+                # J's error, weighted by e^-u, is then below tolerance times the frame's scattered-light
+                # scale (the pilot's; else the ray's brightest J): deep steps may be rougher
+                allowed = quad.tolerance * (quad.light_scale if quad.light_scale > 0.0 else j_max)
                 if (abs(c_lo) + abs(c_hi)) * e0 <= allowed:
                     gauss_done = True
                     break
@@ -332,11 +333,38 @@ def scatters_light(scene):
 
 
 @njit(**NJIT_INLINE)
+def constant_source(scene):
+    """Whether J is the same at every point of every ray: no lights (ambient light only) and one albedo
+    shared by all media, so that J = albedo * ambient wherever there is medium (sum over media of
+    albedo sigma_t,m / sigma_t)."""
+    if scene.lights.kind.shape[0] > 0:
+        return False
+    albedo = scene.media.albedo
+    for m in range(1, albedo.shape[0]):
+        if albedo[m] != albedo[0]:
+            return False
+    return True
+
+
+@njit(**NJIT_INLINE)
+def j_const_rgb(scene, c):
+    """Channel c of the constant J of a scene for which constant_source holds."""
+    return scene.media.albedo[0] * scene.ambient[c]
+
+
+@njit(**NJIT_INLINE)
 def in_scattering(o, d, n_el, scene, quad, work, out):
     """out[:3] += the single-scattering integral over the ray's n_el elementary intervals (in
-    work.pieces), segment after segment, up to where the view transmittance falls below ``cutoff``.
+    work.pieces), segment after segment, up to where the view transmittance falls below ``cutoff``; in
+    closed form where J is constant (``constant_source``: ambient light alone).
     The quadrature runs over each inside segment (a run of adjacent intervals) as a whole, so that chord
     ends, which the light does not see, cost no nodes. Returns work."""
+    if constant_source(scene):
+        # J the same everywhere: the integral of e^-u J du along the ray is J (1 - T), exact, and no node
+        fade = -math.expm1(-work.pieces.el_u0[n_el])
+        for c in range(3):
+            out[c] += fade * j_const_rgb(scene, c)
+        return work
     j_max = 0.0
     k_a = np.int64(0)  # not the literal 0: _depth_at would compile once more for Literal[int](0)
     scratch = work.scratch

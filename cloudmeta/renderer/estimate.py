@@ -31,25 +31,28 @@ def finer_quality(q):
                    cutoff=q.cutoff / COARSER["cutoff"])
 
 
-def estimated_rel_rmse(image, error):
+def estimated_rel_rmse(image, error, scattered_mean=0.0):
     """The image's estimated relative RMSE, the measure of the presets' targets: sqrt(mean over pixels and
-    RGB of error^2) / sqrt(mean of image^2)."""
-    rgb = np.asarray(image, np.float64)[..., :3]
+    RGB of error^2) / the mean scattered radiance (``scattered_mean``, renderer.pilot); where that is 0 (a
+    pilot that saw no scattered light), over sqrt(mean of image^2) instead."""
     e = np.asarray(error, np.float64)
-    norm = float(np.sqrt(np.mean(rgb * rgb)))
+    norm = float(scattered_mean)
+    if not norm > 0.0:
+        rgb = np.asarray(image, np.float64)[..., :3]
+        norm = float(np.sqrt(np.mean(rgb * rgb)))
     return float(np.sqrt(np.mean(e * e))) / norm if norm > 0 else 0.0
 
 
-def with_estimate(render_at, quality, target=None):
+def with_estimate(render_at, quality, target=None, scattered_mean=0.0):
     """(image, error, quality used, refinements): render_at(quality) -> H x W x 4 (float64) at the given
-    settings and at coarser ones; with a ``target`` relative RMSE, refined until the estimate is at most
-    the target (or MAX_REFINEMENTS were made). Each refinement's estimate is its difference to the render
+    settings and at coarser ones; with a ``target`` relative RMSE (relative to ``scattered_mean``, see
+    estimated_rel_rmse), refined until the estimate is at most the target (or MAX_REFINEMENTS were made). Each refinement's estimate is its difference to the render
     before it, which is exactly its coarser render."""
     image = render_at(quality)
     previous = render_at(coarser_quality(quality))
     error = np.abs(image[..., :3] - previous[..., :3])
     steps = 0
-    while target is not None and steps < MAX_REFINEMENTS and estimated_rel_rmse(image, error) > target:
+    while target is not None and steps < MAX_REFINEMENTS and estimated_rel_rmse(image, error, scattered_mean) > target:
         quality = finer_quality(quality)
         previous, image = image, render_at(quality)
         error = np.abs(image[..., :3] - previous[..., :3])

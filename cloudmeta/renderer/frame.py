@@ -15,10 +15,11 @@ from ..errors import InputError
 from ..scene.schema import Scene
 from ..scene.vocabulary import SCATTERING_MODES
 from .bands import tile_window
-from .estimate import with_estimate
+from .estimate import estimated_rel_rmse, with_estimate
 from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, render_multiple
-from .pack import pack_scene
+from .pack import pack_scene, quadrature
+from .pilot import pilot_quality
 from .quality import scene_quality
 from .single import render_single
 
@@ -50,11 +51,17 @@ class RenderResult:
     alpha), depth (H x W float64: the nearest surface hit among a pixel's samples, inf where none), and
     error (H x W x 3 float32, each pixel's estimated absolute error) or None when not asked for; with
     ``render.scattering: approximate`` and the error asked for, ``approximation`` (an
-    approximate.ApproximationError): the approximation's estimated relative RMSE against the unbiased image."""
+    approximate.ApproximationError): the approximation's estimated relative RMSE against the unbiased image;
+    ``scattered`` and ``estimated``: the pilot's measure of the scattered light and the estimated relative
+    RMSE of the image (docs/error_estimate.md)."""
     image: np.ndarray
     depth: np.ndarray
     error: np.ndarray | None = None
     approximation: object | None = None
+    #: the pilot's measure of the frame's scattered light (a pilot.LightScale), and, with the error asked
+    #: for, the image's estimated relative RMSE (the estimate's RMSE over the pilot's mean scattered radiance)
+    scattered: object | None = None
+    estimated: float | None = None
 
 
 def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, error=False) -> RenderResult:
@@ -65,18 +72,26 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     estimator = ESTIMATORS[scene.render.scattering]
     if estimator.check is not None:
         estimator.check(scene)
+    # one packing; the pilot (renderer.pilot) measures the frame's scattered light (the quadrature's
+    # scale) and picks the step
+    base = scene_quality(scene)
+    packed = pack_scene(scene, seed, base)
+    quality, scattered = pilot_quality(scene, packed, base)
+    packed = packed._replace(quadrature=quadrature(quality))
     target = scene.render.error
+    estimated = None
     if error or target is not None:  # renderer.estimate: a second, coarser render; refined to the target
         done = {}
 
-        def at(quality):  # the image at these settings; the packing and depth kept for the one chosen
-            packed = pack_scene(scene, seed, quality)
-            done[quality] = (packed, *render_single(scene, packed, window, progress))
-            return done[quality][1]
-        image, err, quality, _ = with_estimate(at, scene_quality(scene), target)
+        def at(q):  # the image at these settings (the records do not depend on them); kept for the one chosen
+            packed_q = packed._replace(quadrature=quadrature(q))
+            done[q] = (packed_q, *render_single(scene, packed_q, window, progress))
+            return done[q][1]
+        image, err, quality, _ = with_estimate(at, quality, target, scattered.mean)
         packed, _, nearest = done[quality]
+        estimated = estimated_rel_rmse(image, err, scattered.mean)
     else:
-        packed, err = pack_scene(scene, seed), None
+        err = None
         image, nearest = render_single(scene, packed, window, progress)
     if estimator.paths is not None:
         mean, stderr = estimator.paths(scene, seed=seed, progress=progress, rows=rows, columns=columns,
@@ -88,7 +103,8 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     if error and estimator.approximation is not None:
         approximation = estimator.approximation(scene, image, packed, window, seed=seed)
     return RenderResult(image=image.astype(np.float32), depth=nearest.copy(),
-                        error=None if not error else err.astype(np.float32), approximation=approximation)
+                        error=None if not error else err.astype(np.float32), approximation=approximation,
+                        scattered=scattered, estimated=estimated)
 
 
 def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False):

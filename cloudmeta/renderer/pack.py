@@ -322,7 +322,8 @@ def quadrature(quality) -> Quadrature:
     u_stop = -math.log(quality.cutoff) if quality.cutoff > 0.0 else math.inf
     return Quadrature(**quadrature_rule(), max_tau=float(quality.max_tau), max_length=float(quality.max_length),
                       max_angle=float(quality.max_angle), cutoff=float(quality.cutoff), u_stop=u_stop,
-                      tol_t=float(quality.tol_t), tolerance=float(quality.tolerance))
+                      tol_t=float(quality.tol_t), tolerance=float(quality.tolerance),
+                      light_scale=float(quality.light_scale))
 
 
 # --- the whole scene --------------------------------------------------------------------------------------
