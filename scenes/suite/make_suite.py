@@ -13,8 +13,11 @@ The first comment line of each YAML is its place in the suite, read by validatio
 Axes and values (each value is covered by at least two scenes, validation/references/suite.py checks it):
 lighting front (sun behind the camera) | back | side | grazing (sun a few degrees up) | point_inside |
 point_outside; geometry cumulus (77 balls) | deck (flat stratus deck) | ellipsoids (150 rotated) |
-puffs (500 small dense spheres) | bank (1,200 balls) | carved (negative balls); density field | excess |
-uniform; phase hg (g up to 0.9) | double_hg | rayleigh | isotropic; ambient yes | no.
+puffs (500 small dense spheres) | bank (1,200 balls) | carved (negative balls) | generated (the generated
+4,000-ball cumulus) | wisps (400 tiny puffs in filaments) | rotated (150 thin ellipsoids); density field | excess |
+uniform; phase hg (g up to 0.9) | double_hg | rayleigh | isotropic; ambient yes | no. The six scenes of issue
+#23 (generated_*, wisps_*, rotated_*) have a black background and no ambient light: the scattered light is
+all there is, and they were held out of the presets' tuning.
 
 Run from the repository root: python scenes/suite/make_suite.py [OUTDIR]
 """
@@ -80,7 +83,36 @@ def carved(seed=24):
     return HEADER_SPHERES, rows
 
 
-BALL_SETS = {"deck.csv": deck, "ellipsoids_150.csv": ellipsoids, "puffs_500.csv": puffs, "carved.csv": carved}
+def wisps(n=400, seed=31):
+    """400 tiny dense puffs (radius 0.08-0.22) strung along three drifting filaments about 8 units long:
+    thin wisps whose scattered light is a small share of a black frame (issue #23's held-out kind)."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n):
+        f = i % 3
+        x = rng.uniform(-4.0, 4.0)
+        c = np.array([x, 0.8 * np.sin(0.7 * x + 2.0 * f) + rng.normal(0.0, 0.25),
+                      1.5 + 1.2 * f + 0.4 * np.cos(0.9 * x + f) + rng.normal(0.0, 0.2)])
+        rows.append((*c, rng.uniform(0.08, 0.22), rng.uniform(0.8, 1.2)))
+    return HEADER_SPHERES, rows
+
+
+def rotated(n=150, seed=32):
+    """150 thin rotated ellipsoids (aspect 2-5: sheets and needles) in a cloud about 8 x 4 x 4 units, another
+    draw than ellipsoids_150: shadow lines graze tilted, flattened supports."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for _ in range(n):
+        c = rng.normal(0.0, 1.0, 3) * np.array([2.0, 0.9, 0.9]) + np.array([0.0, 0.0, 2.5])
+        r = np.full(3, rng.uniform(0.5, 1.2))
+        r[rng.integers(3)] /= rng.uniform(2.0, 5.0)
+        rows.append((*c, *r, rng.uniform(-180, 180), rng.uniform(-90, 90), rng.uniform(-180, 180),
+                     rng.uniform(0.8, 1.2)))
+    return HEADER_ELLIPSOIDS, rows
+
+
+BALL_SETS = {"deck.csv": deck, "ellipsoids_150.csv": ellipsoids, "puffs_500.csv": puffs, "carved.csv": carved,
+             "wisps_400.csv": wisps, "rotated_150.csv": rotated}
 
 # --- the scenes ---------------------------------------------------------------------------------------------------
 IMAGE = "image: {width: 64, height: 48, spp: 1}"
@@ -88,6 +120,8 @@ CAM_CUMULUS = "camera: {position: [0, -22, 2.2], look_at: [0, 0, 2.2], up: [0, 0
 CAM_SMALL = "camera: {position: [0, -15, 4.0], look_at: [0, 0, 2.5], up: [0, 0, 1], fov: 34}"
 CAM_DECK = "camera: {position: [0, -16, 5.5], look_at: [0, 0, 1.0], up: [0, 0, 1], fov: 44}"
 CAM_BANK = "camera: {position: [0, -44, 24], look_at: [0, -2, 1.0], up: [0, 0, 1], fov: 44}"
+CAM_GENERATED = "camera: {position: [0, -29, 1.0], look_at: [0, 0, 2.75], up: [0, 0, 1], fov: 34}"
+BLACK = "[0, 0, 0]"
 
 
 def medium(name, balls_file, kernel, threshold, mode, scale, albedo, phase):
@@ -183,6 +217,38 @@ SCENES = {
         "the carved blob under a side sun: shadow rays through the tunnels, Rayleigh phase",
         CAM_SMALL, "[0.20, 0.34, 0.66]", "[0.06, 0.08, 0.12]", [sun((-1.0, 0.1, 0.2), 10.0)],
         medium("carved", "carved.csv", "murakami4", 0.3, "field", 2.0, 0.95, "{type: rayleigh}")),
+    # issue #23: a black background and no ambient, so that every figure is relative to scattered light alone
+    "generated_front": (
+        "lighting=front geometry=generated density=excess phase=double_hg ambient=no",
+        "the generated 4,000-ball cumulus (../generated_cumulus.csv) on black, sun behind the camera",
+        CAM_GENERATED, BLACK, None, [sun((0.3, -0.8, 0.5), 8.0)],
+        medium("cumulus", "../generated_cumulus.csv", "wyvill6", 0.5, "excess", 4.76305, 0.98,
+               "{type: double_hg, g1: 0.75, g2: -0.3, w: 0.85}")),
+    "generated_grazing": (
+        "lighting=grazing geometry=generated density=field phase=hg ambient=no",
+        "the generated cumulus on black under a sun 4 degrees up, from the side: long grazing shadow lines",
+        CAM_GENERATED, BLACK, None, [sun((0.95, 0.3, 0.07), 10.0, 3800)],
+        medium("cumulus", "../generated_cumulus.csv", "wyvill6", 0.5, "field", 3.0, 0.97, "{type: hg, g: 0.7}")),
+    "wisps_front": (
+        "lighting=front geometry=wisps density=field phase=hg ambient=no",
+        "400 tiny dense puffs in three filaments on black, front-lit: little scattered light in the frame",
+        CAM_SMALL, BLACK, None, [sun((-0.3, -0.85, 0.45), 10.0)],
+        medium("wisps", "wisps_400.csv", "wyvill6", 0.4, "field", 12.0, 0.95, "{type: hg, g: 0.5}")),
+    "wisps_point": (
+        "lighting=point_outside geometry=wisps density=excess phase=isotropic ambient=no",
+        "the wisps on black lit by a lamp just below the middle filament",
+        CAM_SMALL, BLACK, None, [lamp((0.5, -0.5, 2.2), 40.0)],
+        medium("wisps", "wisps_400.csv", "wyvill6", 0.4, "excess", 20.0, 0.9, "{type: isotropic}")),
+    "rotated_side": (
+        "lighting=side geometry=rotated density=field phase=hg ambient=no",
+        "150 thin rotated ellipsoids on black, sun from the side, strong forward scattering (HG g = 0.9)",
+        CAM_SMALL, BLACK, None, [sun((0.95, 0.25, 0.2), 10.0)],
+        medium("rotated", "rotated_150.csv", "wyvill6", 0.3, "field", 4.0, 0.95, "{type: hg, g: 0.9}")),
+    "rotated_back": (
+        "lighting=back geometry=rotated density=excess phase=hg ambient=no",
+        "the rotated ellipsoids on black against the sun (HG g = 0.85), soft edges",
+        CAM_SMALL, BLACK, None, [sun((0.2, 0.9, 0.35), 6.0)],
+        medium("rotated", "rotated_150.csv", "wyvill6", 0.3, "excess", 6.0, 0.95, "{type: hg, g: 0.85}")),
 }
 
 

@@ -105,7 +105,10 @@ media:
 
 def _balls(spec, folder):
     if "balls_file" in spec:
-        data = np.genfromtxt(folder / spec["balls_file"], delimiter=",", names=True)
+        # comment lines first (a generated file's provenance): genfromtxt would take one for the header
+        lines = [ln for ln in (folder / spec["balls_file"]).read_text(encoding="utf-8").splitlines()
+                 if ln.strip() and not ln.lstrip().startswith("#")]
+        data = np.genfromtxt(lines, delimiter=",", names=True)
         data = np.atleast_1d(data)
         names = data.dtype.names
         c = np.stack([data["x"], data["y"], data["z"]], axis=1)

@@ -11,8 +11,9 @@ Error measure (validation/common.py's ``rel_rmse``, over the RGB of the whole im
 
     rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / sqrt(mean over pixels and RGB of L_ref^2)
 
-the same relative to the scattered light alone (``rel_rmse_scattered``: the background's share removed from
-the denominator, so that a bright sky does not dilute the error), and the worst pixel's relative error,
+the same relative to the scattered light alone (``rel_rmse_scattered``: over the mean scattered radiance,
+the presets' measure since issue #23, so that a bright sky does not dilute the error), and the worst
+pixel's relative error,
 max over pixels of max_c |L - L_ref| / max_c L_ref (the largest channel of the reference pixel: dark
 pixels are not divided by their own small channels).
 """
@@ -33,7 +34,7 @@ CACHE = RESULTS / "suite"
 #: every axis and its values; each value must be covered by at least two scenes
 AXES = {
     "lighting": ("front", "back", "side", "grazing", "point_inside", "point_outside"),
-    "geometry": ("cumulus", "deck", "ellipsoids", "puffs", "bank", "carved"),
+    "geometry": ("cumulus", "deck", "ellipsoids", "puffs", "bank", "carved", "generated", "wisps", "rotated"),
     "density": ("field", "excess", "uniform"),
     "phase": ("hg", "double_hg", "rayleigh", "isotropic"),
     "ambient": ("yes", "no"),
@@ -81,14 +82,18 @@ def tighter(scene):
     return with_settings(scene, **TIGHTER, max_length=TIGHTER_LENGTH * float(np.linalg.norm(hi - lo)))
 
 
-def rel_rmse_scattered(img, ref, background):
-    """The same error relative to the light the media scatter, not to the whole image: sqrt(mean over pixels
-    and RGB of (L - L_ref)^2) / sqrt(mean of S_ref^2), S_ref = L_ref - L_bg T_ref (T_ref = 1 - alpha). The
-    background's share L_bg T is exact at every setting (the view transmittance is), so the numerator is the
-    same; this measure does not shrink as the sky gets brighter or covers more of the frame."""
+def scattered(ref, background):
+    """S_ref = L_ref - L_bg T_ref (T_ref = 1 - alpha): the reference's scattered light, what the quadrature
+    approximates (the background seen through the media is exact at every setting)."""
     b = np.asarray(ref, np.float64)
-    s = b[..., :3] - np.asarray(background, np.float64) * (1.0 - b[..., 3:4])
-    return rel_rmse(img, b, norm=np.sqrt(np.mean(s ** 2)))
+    return b[..., :3] - np.asarray(background, np.float64) * (1.0 - b[..., 3:4])
+
+
+def rel_rmse_scattered(img, ref, background):
+    """The presets' measure (issue #23, docs/error_estimate.md): sqrt(mean over pixels and RGB of
+    (L - L_ref)^2) / mean over pixels and RGB of S_ref. It does not shrink as the sky gets brighter or
+    covers more of the frame."""
+    return rel_rmse(img, ref, norm=float(scattered(ref, background).mean()))
 
 
 def worst_pixel(img, ref):
