@@ -1,5 +1,5 @@
 """The pilot: how bright a frame's scattered light is, measured before the frame is rendered
-(docs/model.md §9, docs/error_estimate.md).
+(docs/model.md §11, docs/error_estimate.md).
 
 The presets are targets for the image's RMSE against the converged image divided by the mean scattered
 radiance. The scattered radiance is the image less what is computed exactly: the background seen through
@@ -23,10 +23,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..kernels.single import render_pixels
-from .bands import run_bands
-from .pack import pack_camera, quadrature
+from .pack import Packed, pack_camera, quadrature
 from .quality import resolve_quality
+from .single import render_single
 
 #: the pilot samples every STRIDE-th pixel of the frame in each direction, or fewer so that its shorter side
 #: keeps MIN_SIDE pixels (all of them where the frame's is shorter still); its aspect is the frame's
@@ -52,28 +51,19 @@ def pilot_size(width, height):
     return -(-width // stride), -(-height // stride)
 
 
-def _pilot(scene, packed):
-    """(camera, records) of the pilot grid: ``packed``'s scene records (BVHs, shadow maps) with the
-    background and the surfaces' colours blackened, so that it compiles nothing new."""
+def pilot_image(scene, packed, quality):
+    """The pilot's H x W x 4 image at ``quality`` (a renderer.quality.Quality): the scattered light alone
+    on the pilot grid, rendered by the single-scattering driver with ``packed``'s scene records (BVHs,
+    shadow maps), the background and the surfaces' colours blackened, so that it compiles nothing new."""
     width, height = pilot_size(scene.image.width, scene.image.height)
     small = replace(scene, image=replace(scene.image, width=width, height=height, spp=1))
     rec = packed.records
     surfaces = rec.surfaces
     if surfaces is not None:
         surfaces = surfaces._replace(colour=np.zeros_like(surfaces.colour))
-    return pack_camera(small, 0), rec._replace(background=np.zeros((1, 3)), surfaces=surfaces)
-
-
-def pilot_image(scene, packed, quality):
-    """The pilot's H x W x 4 image at ``quality`` (a renderer.quality.Quality): the scattered light
-    alone, on the pilot grid."""
-    camera, records = _pilot(scene, packed)
-    quad = quadrature(quality)
-    width, height = camera.width, camera.height
-    image = np.zeros((height, width, 4), np.float64)
-    nearest = np.full((height, width), np.inf)
-    run_bands(lambda row0, p0, p1: render_pixels(camera, records, quad, row0, p0, p1, image, nearest),
-              ((0, height), (0, width)), width, False)
+    records = rec._replace(background=np.zeros((1, 3)), surfaces=surfaces)
+    pilot = Packed(camera=pack_camera(small, 0), records=records, quadrature=quadrature(quality))
+    image, _ = render_single(small, pilot, ((0, height), (0, width)), False)
     return image
 
 

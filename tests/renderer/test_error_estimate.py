@@ -12,6 +12,7 @@ from cloudmeta.io import read_exr, write_exr
 from cloudmeta.renderer.estimate import coarser_quality, estimated_rel_rmse, finer_quality
 from cloudmeta.renderer import render
 from cloudmeta.renderer.quality import resolve_quality
+from validation.references import suite as S
 
 ROOT = Path(__file__).resolve().parents[2]
 SUITE = ROOT / "scenes" / "suite"
@@ -49,13 +50,6 @@ def test_estimated_rel_rmse_is_the_presets_measure():
     assert estimated_rel_rmse(np.zeros((2, 2, 4)), err) == 0.0
 
 
-def scattered_rel_rmse(img, ref, background):
-    """The presets' measure against a converged reference: RMSE over the reference's mean scattered radiance."""
-    a, b = np.asarray(img, np.float64), np.asarray(ref, np.float64)
-    scattered = b[..., :3] - np.asarray(background, np.float64) * (1.0 - b[..., 3:4])
-    return float(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2)) / scattered.mean())
-
-
 @pytest.mark.parametrize("name", ["deck_grazing", "cumulus_front", "wisps_front"])
 def test_estimate_brackets_the_true_error_on_suite_scenes(name):
     """Against the committed converged references (validation/results/suite): the image-level estimate
@@ -65,7 +59,7 @@ def test_estimate_brackets_the_true_error_on_suite_scenes(name):
     ref = np.load(RESULTS / f"{name}.npy")
     s = cm.load_scene(SUITE / f"{name}.yaml")
     result = render_frame(s, progress=False, error=True)
-    true = scattered_rel_rmse(result.image, ref, s.background)
+    true = S.rel_rmse_scattered(result.image, ref, s.background)
     assert 0.5 * true <= result.estimated <= 10 * true
     assert result.estimated == pytest.approx(estimated_rel_rmse(result.image, result.error, result.scattered.mean),
                                              rel=1e-6)  # (float32 outputs)
@@ -118,7 +112,7 @@ def test_error_target_refines_until_the_estimate_meets_it():
     s = replace(s, render=replace(s.render, error=1e-4))
     result = render_frame(s, progress=False, error=True)
     assert result.estimated <= 1e-4
-    assert scattered_rel_rmse(result.image, ref, s.background) <= 1e-4
+    assert S.rel_rmse_scattered(result.image, ref, s.background) <= 1e-4
     # a target the preset meets already changes nothing
     loose = replace(s, render=replace(s.render, error=0.5))
     plain = render(replace(s, render=replace(s.render, error=None)), progress=False)
