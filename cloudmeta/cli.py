@@ -47,8 +47,8 @@ def _render(args):
     # every output is created now as a temporary file and renamed into place only when all are written
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
-        image, error, took, approximation, estimated = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(),
-                                                          error=estimate)
+        image, error, took, approximation, estimated = _render_image(
+            scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate)
         encode_outputs(image, tmps, scene.render.colourspace, exposure, error)
     if error is not None:
         target = (f"render.error {scene.render.error:g}" if scene.render.error is not None else

@@ -46,13 +46,15 @@ def estimated_rel_rmse(image, error, scattered_mean=0.0):
 def with_estimate(render_at, quality, target=None, scattered_mean=0.0):
     """(image, error, quality used, refinements): render_at(quality) -> H x W x 4 (float64) at the given
     settings and at coarser ones; with a ``target`` relative RMSE (relative to ``scattered_mean``, see
-    estimated_rel_rmse), refined until the estimate is at most the target (or MAX_REFINEMENTS were made). Each refinement's estimate is its difference to the render
-    before it, which is exactly its coarser render."""
+    estimated_rel_rmse), refined until the estimate is at most the target (or MAX_REFINEMENTS were made).
+    Each refinement's estimate is its difference to the render before it, which is exactly its coarser
+    render."""
     image = render_at(quality)
     previous = render_at(coarser_quality(quality))
     error = np.abs(image[..., :3] - previous[..., :3])
     steps = 0
-    while target is not None and steps < MAX_REFINEMENTS and estimated_rel_rmse(image, error, scattered_mean) > target:
+    while (target is not None and steps < MAX_REFINEMENTS
+           and estimated_rel_rmse(image, error, scattered_mean) > target):
         quality = finer_quality(quality)
         previous, image = image, render_at(quality)
         error = np.abs(image[..., :3] - previous[..., :3])

@@ -72,14 +72,12 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     estimator = ESTIMATORS[scene.render.scattering]
     if estimator.check is not None:
         estimator.check(scene)
-    # one packing; the pilot (renderer.pilot) measures the frame's scattered light (the quadrature's
-    # scale) and picks the step
+    # one packing; the pilot (renderer.pilot) measures the frame's scattered light: the quadrature's scale
     base = scene_quality(scene)
     packed = pack_scene(scene, seed, base)
     quality, scattered = pilot_quality(scene, packed, base)
     packed = packed._replace(quadrature=quadrature(quality))
     target = scene.render.error
-    estimated = None
     if error or target is not None:  # renderer.estimate: a second, coarser render; refined to the target
         done = {}
 
@@ -89,7 +87,6 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
             return done[q][1]
         image, err, quality, _ = with_estimate(at, quality, target, scattered.mean)
         packed, _, nearest = done[quality]
-        estimated = estimated_rel_rmse(image, err, scattered.mean)
     else:
         err = None
         image, nearest = render_single(scene, packed, window, progress)
@@ -99,6 +96,8 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         image[..., :3] += mean
         if err is not None:
             err = np.sqrt(err * err + stderr * stderr)
+    # the image's estimated relative RMSE, of the error as returned (Monte Carlo standard error included)
+    estimated = None if err is None else estimated_rel_rmse(image, err, scattered.mean)
     approximation = None
     if error and estimator.approximation is not None:
         approximation = estimator.approximation(scene, image, packed, window, seed=seed)

@@ -150,3 +150,17 @@ def test_multiple_scattering_adds_its_standard_error_in_quadrature():
     assert np.all(np.isfinite(stderr)) and stderr.max() > 0
     expect = np.sqrt(quad_err.astype(np.float64) ** 2 + stderr ** 2)
     assert np.allclose(err, expect, rtol=1e-6, atol=0)
+
+
+def test_estimated_rel_rmse_includes_the_monte_carlo_standard_error():
+    """With multiple scattering the returned error holds the paths' standard error too; the estimated
+    relative RMSE is of that error, not of the quadrature's part alone."""
+    from dataclasses import replace
+    from cloudmeta.renderer import render_frame
+    s = cm.load_scene(ROOT / "scenes" / "cumulus.yaml", width=8, height=6)
+    s = replace(s, ambient=None, render=replace(s.render, scattering="multiple", ms_spp=4, max_order=3))
+    result = render_frame(s, progress=False, error=True)
+    assert result.estimated == pytest.approx(estimated_rel_rmse(result.image, result.error, result.scattered.mean),
+                                             rel=1e-6)
+    single = render_frame(replace(s, render=replace(s.render, scattering="single")), progress=False, error=True)
+    assert result.estimated > single.estimated
