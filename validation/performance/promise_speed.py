@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from validation.common import RESULTS, ROOT, parse, parser, run_main
+from validation.references import suite as S
 
 CASES = {
     "front": ("scenes/cumulus.yaml", True),
@@ -85,14 +86,12 @@ def reference(case, size):
 
 
 def scattered_error(img, ref, case, size):
-    """RMSE over the mean scattered radiance of the reference (its RGB less the background seen through)."""
+    """RMSE over the mean scattered radiance of the reference (suite.rel_rmse_scattered)."""
     import cloudmeta as cm
     s = cm.load_scene(ROOT / CASES[case][0], width=size, height=size)
-    bg = np.asarray(s.background, np.float64).reshape(-1, 3)[0] if s.sky is None else None
-    if bg is None:
+    if s.sky is not None:
         raise SystemExit(f"{case}: a sky background is not supported here")
-    scattered = ref[..., :3] - bg * (1.0 - ref[..., 3:4])
-    return float(np.sqrt(np.mean((img[..., :3] - ref[..., :3]) ** 2)) / scattered.mean())
+    return S.rel_rmse_scattered(img, ref, s.background)
 
 
 def main(argv=None, quick=False):
@@ -112,8 +111,8 @@ def main(argv=None, quick=False):
             for r in roots:
                 times[r] += run(r, case, args.size, args.repeat)
         med = [statistics.median(times[r]) for r in roots]
-        line = (f"{case:16s} " + "  ".join(f"{statistics.median(times[r]):7.2f} s ({min(times[r]):.2f}-"
-                                               f"{max(times[r]):.2f})" for r in roots) + f"  ratio {med[1] / med[0]:.3f}")
+        spans = [f"{statistics.median(times[r]):7.2f} s ({min(times[r]):.2f}-{max(times[r]):.2f})" for r in roots]
+        line = f"{case:16s} " + "  ".join(spans) + f"  ratio {med[1] / med[0]:.3f}"
         if args.error:
             ref = reference(case, args.size)
             errs = []
