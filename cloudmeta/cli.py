@@ -183,7 +183,8 @@ def build_parser():
     r.add_argument("--spp", type=int, help="samples per pixel")
     r.add_argument("--quality", choices=QUALITIES, help="quadrature preset")
     r.add_argument("--shadows", choices=SHADOW_MODES,
-                   help="shadow rays to every light (exact), or light-space maps for directional lights (map)")
+                   help="shadow rays to every light (exact), light-space maps for directional lights (map), or "
+                        "maps where their error bound allows and exact rays elsewhere (hybrid)")
     r.add_argument("--shadow-map", type=_texels, help=f"texels per side of a shadow map (default {SHADOW_MAP_RESOLUTION})")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: the scene's)")
     r.add_argument("--error", action="store_true",

@@ -9,7 +9,6 @@ each kernel is compiled in at most two versions (with and without), not four.
 
 Each helper is also a plain Python function with the same meaning, for calls from Python.
 """
-import math
 
 import numpy as np
 from numba.core import types
@@ -54,9 +53,11 @@ def light_map(maps, li):
     return -1 if maps is None else maps.map_of[li]
 
 
-def map_transmittance(x, maps, mi):
-    """T towards the light of map mi (>= 0) at x, from its shadow map."""
-    return math.exp(-map_optical_depth(x, maps, mi))
+def map_depth(x, maps, mi):
+    """(tau, tau_lo, tau_hi) towards the light of map mi (>= 0) at x, from its shadow map
+    (shadowmap.map_optical_depth)."""
+    return map_optical_depth(x, maps, mi)
+
 
 
 @overload(misses_surfaces, **OVERLOAD)
@@ -104,8 +105,9 @@ def _light_map(maps, li):
     return lambda maps, li: maps.map_of[li]
 
 
-@overload(map_transmittance, **OVERLOAD)
-def _map_transmittance(x, maps, mi):
+@overload(map_depth, **OVERLOAD)
+def _map_depth(x, maps, mi):
     if _absent(maps):
-        return lambda x, maps, mi: 1.0  # never asked: light_map gives -1 without maps
-    return lambda x, maps, mi: math.exp(-map_optical_depth(x, maps, mi))
+        return lambda x, maps, mi: (0.0, 0.0, 0.0)  # never asked: light_map gives -1 without maps
+    return lambda x, maps, mi: map_optical_depth(x, maps, mi)
+

@@ -132,10 +132,11 @@ def scattering_mix(k, s, rp, med, u):
 
 
 @njit(**NJIT)
-def next_event(x, d, k, s, scene, tol_t, work, out):
+def next_event(x, d, k, s, scene, tol_t, j_tol, work, out):
     """out[:3] += sum over lights of E_l T_l sum_m (sigma_s,m / sigma_t) p_m(l . d) at x (s on interval k
     of work.pieces, the ray with direction d): the light scattered once more at x, with the shadow rays
-    of the single-scattering renderer (lighting.light_at_node). Returns work."""
+    of the single-scattering renderer (lighting.light_at_node; j_tol its trust in a shadow map). Returns
+    work."""
     med = scene.media
     el_sig = work.pieces.el_sig
     sigma_t = 0.0
@@ -146,7 +147,8 @@ def next_event(x, d, k, s, scene, tol_t, work, out):
         sigma_s += med.albedo[m] * sig
     if not (sigma_t > 0.0 and sigma_s > 0.0):
         return work
-    scratch = light_at_node(x, x, d, False, TAU_STOP, scene, tol_t, work.scratch, work)
+    # paths stay unbiased: a hybrid map is not trusted here (j_tol 0), a plain map always (inf)
+    scratch = light_at_node(x, x, d, False, TAU_STOP, j_tol, scene, tol_t, work.scratch, work)
     light = work.nodes.light
     for m in range(n_media(med)):
         ratio = med.albedo[m] * bernstein_eval(el_sig[k, m], s) / sigma_t
@@ -169,6 +171,7 @@ def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work
     ray needed more room."""
     seed, pixel, path = key.seed, key.pixel, key.path
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
+    map_trust = quad.map_tolerance if quad.map_tolerance == np.inf else 0.0
     background = scene.background
     o, d, d_new, light = vectors.o, vectors.d, vectors.d_new, vectors.light
     for c in range(3):
@@ -203,7 +206,7 @@ def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work
             o[c] = o[c] + t * d[c]
         if n_vert > 0:  # vertex 1 is single scattering: counted exactly by the deterministic renderer
             light[:] = 0.0
-            work = next_event(o, d, k, s, scene, tol_t, work, light)
+            work = next_event(o, d, k, s, scene, tol_t, map_trust, work, light)
             for c in range(3):
                 out[c] += weight * light[c]
         ratio, m = scattering_mix(k, s, rp, scene.media, uniform(seed, pixel, path, n_vert, DIM_MEDIUM))

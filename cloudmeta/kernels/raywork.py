@@ -20,7 +20,8 @@ def alloc_node_work(n_lights):
     """The small per-ray work vectors of the radiance kernels (a records.NodeWork)."""
     return NodeWork(light=np.empty((n_lights, 5)), pos=np.empty(3), l_dir=np.empty(3), x=np.empty(3),
                     normal=np.empty(3), x_off=np.empty(3), node_w=np.empty(MAX_NODES),
-                    j_val=np.empty((3, MAX_NODES)), split_u=np.empty(MAX_NODES), split_depth=np.empty(MAX_NODES))
+                    j_val=np.empty((3, MAX_NODES)), split_u=np.empty(MAX_NODES), split_depth=np.empty(MAX_NODES),
+                    count=np.zeros(4))
 
 
 @njit(**NJIT)

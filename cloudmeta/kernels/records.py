@@ -71,10 +71,13 @@ SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "backg
 #: max_tau, max_length, max_angle, cutoff, u_stop = -log(cutoff) (the view optical depth past which
 #: nothing is shaded; inf for cutoff 0), tol_t (the root tolerance on t, absolute), tolerance, and
 #: light_scale (the frame's scattered-light scale that tolerance is relative to, cloudmeta.renderer.pilot; 0:
-#: relative to each ray's brightest J instead)
+#: relative to each ray's brightest J instead), and map_tolerance: the error of J (r + g + b, weighted by the view
+#: transmittance, absolute) that a shadow map's interpolation may make at a node before an exact shadow ray
+#: replaces it (``shadows: hybrid``; inf for ``shadows: map``, which always trusts the map; kernels.lighting)
 Quadrature = namedtuple("Quadrature", ["gauss_x", "gauss_lag", "kronrod_x", "kronrod_lag", "gauss_col",
                                        "kronrod_col", "tail", "fine_y", "fine_w", "max_tau", "max_length",
-                                       "max_angle", "cutoff", "u_stop", "tol_t", "tolerance", "light_scale"])
+                                       "max_angle", "cutoff", "u_stop", "tol_t", "tolerance", "light_scale",
+                                       "map_tolerance"])
 
 #: a pinhole camera (docs/model.md §8): position, forward, and right / up scaled to the image plane's
 #: half-extent at distance 1 (3,) each; the image size, samples per pixel and the jitter seed
@@ -98,9 +101,10 @@ RayPieces = namedtuple("RayPieces", ["t0", "t1", "c", "medium", "bp", "order", "
 #: small per-ray work vectors of the radiance kernels (kernels.raywork.alloc_node_work): light (L, 4) =
 #: per light l . v and E_l T_l (r, g, b) at the current node; pos and l_dir at a node; x, normal and
 #: x_off (x lifted off the surface) at a surface hit; node_w the product-integration weights of a step;
-#: j_val (3, nodes) J at the nodes of a step; split_u and split_depth the parts of a step still to do
+#: j_val (3, nodes) J at the nodes of a step; split_u and split_depth the parts of a step still to do; count
+#: (4,) what the light at the nodes cost so far on this thread (kernels.lighting.COUNT_*)
 NodeWork = namedtuple("NodeWork", ["light", "pos", "l_dir", "x", "normal", "x_off", "node_w", "j_val", "split_u",
-                                   "split_depth"])
+                                   "split_depth", "count"])
 
 #: everything one thread's camera rays reuse: SweepScratch (grows), RayPieces (grows), the BVH's
 #: candidate list and walk stack, NodeWork

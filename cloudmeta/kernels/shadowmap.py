@@ -106,31 +106,47 @@ def texel_optical_depth(s, a, b, t0, t1, c, cum, reach):
 
 
 @njit(**NJIT_INLINE)
-def map_optical_depth(x, maps, mi):
-    """Optical depth from x towards the light of map mi of ``maps`` (a records.ShadowMaps): exact along
-    texel rays, bilinear across them."""
-    geo = maps.geo[mi]
-    res = maps.res[mi]
-    base = maps.base[mi]
-    start = maps.start
+def _map_coordinates(x, geo):
+    """(u, v, s): x's place on a map, in texels (texel centres at integers) and in depth along its rays."""
     px = x[0] - geo[0]
     py = x[1] - geo[1]
     pz = x[2] - geo[2]
     u = (px * geo[3] + py * geo[4] + pz * geo[5]) / geo[12] - 0.5
     v = (px * geo[6] + py * geo[7] + pz * geo[8]) / geo[12] - 0.5
     s = px * geo[9] + py * geo[10] + pz * geo[11]
+    return u, v, s
+
+
+@njit(**NJIT_INLINE)
+def _texel_depth(maps, res, base, i, j, s):
+    """The optical depth at depth s on the ray of texel (i, j), clamped to the map."""
+    i = min(max(i, 0), res - 1)
+    j = min(max(j, 0), res - 1)
+    k = base + i * res + j
+    return texel_optical_depth(s, maps.start[k], maps.start[k + 1], maps.t0, maps.t1, maps.c, maps.cum, maps.reach)
+
+
+@njit(**NJIT_INLINE)
+def map_optical_depth(x, maps, mi):
+    """(tau, tau_lo, tau_hi): the optical depth from x towards the light of map mi of ``maps`` (a
+    records.ShadowMaps), exact along texel rays and bilinear across them, and the least and greatest of the
+    four texels' depths (where the depth is monotone across the cell, tau lies between them)."""
+    res = maps.res[mi]
+    base = maps.base[mi]
+    u, v, s = _map_coordinates(x, maps.geo[mi])
     i0 = int(np.floor(u))
     j0 = int(np.floor(v))
     fu = u - i0
     fv = v - j0
     tau = 0.0
+    lo = np.inf
+    hi = 0.0
     for di in range(2):
-        i = min(max(i0 + di, 0), res - 1)
         wi = fu if di == 1 else 1.0 - fu
         for dj in range(2):
-            j = min(max(j0 + dj, 0), res - 1)
             wj = fv if dj == 1 else 1.0 - fv
-            k = base + i * res + j
-            tau += wi * wj * texel_optical_depth(s, start[k], start[k + 1], maps.t0, maps.t1, maps.c, maps.cum,
-                                                 maps.reach)
-    return tau
+            tau_k = _texel_depth(maps, res, base, i0 + di, j0 + dj, s)
+            tau += wi * wj * tau_k
+            lo = min(lo, tau_k)
+            hi = max(hi, tau_k)
+    return tau, lo, hi

@@ -66,7 +66,7 @@ from .bernstein import bernstein_cumulative, bernstein_eval
 from .bvh import misses_root_boxes
 from .camera import background_radiance, background_sample, camera_ray
 from .features import misses_surfaces, surface_hit
-from .lighting import angular_cuts, light_at_node
+from .lighting import COUNT_NODES, angular_cuts, light_at_node
 from .media import collect_media
 from .optics import phase
 from .records import RayWork, StepState
@@ -165,9 +165,14 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     for c in range(3):
         pos[c] = o[c] + t * d[c]
     octaves = scene.octaves
+    work.nodes.count[COUNT_NODES] += 1.0
+    # a map's error at this node is seen through e^-u; the octaves' T_l^(a^i) would amplify it: exact rays
+    j_tol = quad.map_tolerance
+    if j_tol != np.inf:
+        j_tol = 0.0 if octaves.shape[0] > 1 else j_tol * math.exp(min(u, 700.0))
     # the last octave sees the least optical depth (a^i tau): the shadow ray counts until that one is dark
-    scratch = light_at_node(pos, pos, d, False, quad.u_stop / octaves[octaves.shape[0] - 1, 0], scene, quad.tol_t,
-                            scratch, work)
+    scratch = light_at_node(pos, pos, d, False, quad.u_stop / octaves[octaves.shape[0] - 1, 0], j_tol, scene,
+                            quad.tol_t, scratch, work)
     for m in range(med.albedo.shape[0]):
         if med.albedo[m] == 0.0:
             continue
@@ -386,7 +391,7 @@ def shade_surface(o, d, t_hit, s, scene, quad, scratch, work):
     surface_normal(x, d, scene.surfaces, s, work.cand, work.stack, nrm)
     for c in range(3):
         x_off[c] = x[c] + SHADOW_OFFSET * quad.tol_t * nrm[c]
-    scratch = light_at_node(x, x_off, nrm, True, quad.u_stop, scene, quad.tol_t, scratch, work)
+    scratch = light_at_node(x, x_off, nrm, True, quad.u_stop, quad.map_tolerance, scene, quad.tol_t, scratch, work)
     e0 = 0.0
     e1 = 0.0
     e2 = 0.0
@@ -466,10 +471,11 @@ def single_scattering(o, d, scene, quad, work, out):
 
 
 @njit(**NJIT)
-def render_pixels(camera, scene, quad, row0, p0, p1, image, depth):
+def render_pixels(camera, scene, quad, row0, p0, p1, image, depth, counts):
     """Pixels p0 .. p1 - 1, counted row by row from the start of row row0, into image (H x W x 4, row 0
-    at the top) and depth (H x W: per pixel, the nearest surface hit t over its samples, inf where none
-    hits), with their own work arrays. nogil: cloudmeta.renderer.single runs bands of rows on several threads.
+    at the top), depth (H x W: per pixel, the nearest surface hit t over its samples, inf where none
+    hits) and counts (H x W x 4: per pixel what its light cost, kernels.lighting.COUNT_*), with their own
+    work arrays. nogil: cloudmeta.renderer.single runs bands of rows on several threads.
 
     camera: a records.Camera (right and up scaled to the half-extent of the image plane at distance 1);
     scene: a records.SceneRecords; quad: a records.Quadrature. With spp > 1 the samples are stratified
@@ -502,6 +508,10 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth):
             acc3 += px_out[3]
             nearest = min(nearest, px_out[4])
         depth[i, j] = nearest
+        tally = work.nodes.count
+        for q in range(4):
+            counts[i, j, q] = tally[q]
+            tally[q] = 0.0
         image[i, j, 0] = acc0 / spp
         image[i, j, 1] = acc1 / spp
         image[i, j, 2] = acc2 / spp

@@ -87,12 +87,13 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     h, w = scene.image.height, scene.image.width
     exact = np.zeros((h, w, 4))
     nearest = np.full((h, w), np.inf)
+    counts = np.zeros((h, w, 4))
     mean = np.zeros((h, w, 3))
     stderr = np.zeros((h, w, 3))
 
     def pixel(k):  # each pixel writes its own entries; every random number is keyed by the pixel
         i, j = int(rows[k]), int(cols[k])
-        render_pixels(camera, single, quad, np.int64(i), np.int64(j), np.int64(j + 1), exact, nearest)
+        render_pixels(camera, single, quad, np.int64(i), np.int64(j), np.int64(j + 1), exact, nearest, counts)
         render_paths(camera, single, quad, settings, np.int64(i), np.int64(j), np.int64(j + 1), mean, stderr)
 
     with ThreadPoolExecutor(numba.get_num_threads()) as pool:

@@ -62,6 +62,18 @@ class RenderResult:
     #: for, the image's estimated relative RMSE (the estimate's RMSE over the pilot's mean scattered radiance)
     scattered: object | None = None
     estimated: float | None = None
+    #: per pixel what the single-scattering render's light cost (H x W x 4 float64: quadrature nodes, exact
+    #: shadow rays, shadow-map lookups, lookups trusted; renderer.single.render_single); see ``cost``
+    counts: np.ndarray | None = None
+
+    def cost(self):
+        """Per pixel with media (alpha > 0), the mean count of quadrature nodes, exact shadow rays, map lookups
+        and trusted lookups, as a dict (the benchmarks' counters; zeros where no pixel has media)."""
+        media = self.image[..., 3] > 0.0
+        n = max(int(np.count_nonzero(media)), 1)
+        total = self.counts[media].sum(axis=0) if self.counts is not None else np.zeros(4)
+        return dict(media_pixels=int(np.count_nonzero(media)), nodes=total[0] / n, exact_rays=total[1] / n,
+                    lookups=total[2] / n, trusted=total[3] / n)
 
 
 def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, error=False) -> RenderResult:
@@ -86,10 +98,10 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
             done[q] = (packed_q, *render_single(scene, packed_q, window, progress))
             return done[q][1]
         image, err, quality, _ = with_estimate(at, quality, target, scattered.mean)
-        packed, _, nearest = done[quality]
+        packed, _, nearest, counts = done[quality]
     else:
         err = None
-        image, nearest = render_single(scene, packed, window, progress)
+        image, nearest, counts = render_single(scene, packed, window, progress)
     if estimator.paths is not None:
         mean, stderr = estimator.paths(scene, seed=seed, progress=progress, rows=rows, columns=columns,
                                        packed=packed)
@@ -103,7 +115,7 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         approximation = estimator.approximation(scene, image, packed, window, seed=seed)
     return RenderResult(image=image.astype(np.float32), depth=nearest.copy(),
                         error=None if not error else err.astype(np.float32), approximation=approximation,
-                        scattered=scattered, estimated=estimated)
+                        scattered=scattered, estimated=estimated, counts=counts)
 
 
 def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False):

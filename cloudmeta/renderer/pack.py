@@ -21,7 +21,7 @@ from ..kernels.records import (BVH, Camera, Lights, MapPieces, Media, Quadrature
                                Surfaces)
 from ..kernels.shadowmap import trace_texel_chunk
 from ..scene.atmosphere import sky_mean
-from ..scene.vocabulary import SHADOW_MAP_RESOLUTION
+from ..scene.vocabulary import MAP_SHADOWS, SHADOW_MAP_RESOLUTION
 from .bands import n_chunks
 from .quality import Quality, scene_quality
 
@@ -107,11 +107,11 @@ def media_bbox(scene):
 
 
 def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
-    """The scene as the radiance kernels read it; with ``render.shadows: map`` (and media), a shadow map
+    """The scene as the radiance kernels read it; with ``render.shadows: map`` or ``hybrid`` (and media), a shadow map
     of ``shadow_map_resolution`` texels per side for each directional light."""
     med = pack_media(scene.media)
     maps = None
-    if scene.render.shadows == "map" and scene.media:
+    if scene.render.shadows in MAP_SHADOWS and scene.media:
         lo, hi = media_bbox(scene)
         maps = build_shadow_maps(scene.lights, med, lo, hi, shadow_map_resolution, quad.tol_t)
     # fresh writable copies: numba types read-only arrays apart, and a second type means a second compile
@@ -323,7 +323,15 @@ def quadrature(quality) -> Quadrature:
     return Quadrature(**quadrature_rule(), max_tau=float(quality.max_tau), max_length=float(quality.max_length),
                       max_angle=float(quality.max_angle), cutoff=float(quality.cutoff), u_stop=u_stop,
                       tol_t=float(quality.tol_t), tolerance=float(quality.tolerance),
-                      light_scale=float(quality.light_scale))
+                      light_scale=float(quality.light_scale), map_tolerance=map_tolerance(quality))
+
+
+def map_tolerance(quality):
+    """records.Quadrature.map_tolerance: inf for a plain map (always trusted), else the hybrid share of the
+    absolute tolerance (0 without a pilot's light scale: exact shadow rays then)."""
+    if quality.map_share == math.inf:
+        return math.inf
+    return float(quality.map_share * quality.tolerance * quality.light_scale)
 
 
 # --- the whole scene --------------------------------------------------------------------------------------

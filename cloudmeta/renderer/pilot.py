@@ -63,7 +63,7 @@ def pilot_image(scene, packed, quality):
         surfaces = surfaces._replace(colour=np.zeros_like(surfaces.colour))
     records = rec._replace(background=np.zeros((1, 3)), surfaces=surfaces)
     pilot = Packed(camera=pack_camera(small, 0), records=records, quadrature=quadrature(quality))
-    image, _ = render_single(small, pilot, ((0, height), (0, width)), False)
+    image, _, _ = render_single(small, pilot, ((0, height), (0, width)), False)
     return image
 
 

@@ -34,17 +34,20 @@ quadrature of the in-scattering integral against time.
 
 Opaque surfaces (``surfaces:``, docs/model.md §6) are exact at every setting too: the first root of each
 surface's field along the camera ray, the analytic normal, and shadow rays that stop at the first surface
-they meet. With ``shadows: map`` the maps hold the media only; surfaces still block every shadow ray
+they meet. With ``shadows: hybrid`` a node takes T_l from the map only where the spread of the four texels
+around it, in the light it scatters, is within HYBRID_SHARE of the tolerance (kernels.lighting.light_at_node).
+With ``shadows: map`` or ``hybrid`` the maps hold the media only; surfaces still block every shadow ray
 exactly (a first-root test per node and light), so their shadows are as sharp as with ``exact``. A surface
 seen through less than ``cutoff`` of view transmittance is not shaded (like the media behind it).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
 from ..scene.schema import RenderSettings
-from ..scene.vocabulary import QUALITIES
+from ..scene.vocabulary import HYBRID_SHARE, QUALITIES
 
 #: the quadrature presets (issue #23): each is a target of the image's RMSE over its mean scattered radiance
 #: (draft 3e-3, default 1e-3, fine 3e-4), with ``tolerance`` equal to the target (relative to the pilot's
@@ -74,6 +77,9 @@ class Quality:
     #: the frame's scattered-light scale (renderer.pilot; RGB sum): ``tolerance`` is relative to it; 0 where
     #: it is not measured, and then relative to each ray's brightest J
     light_scale: float = 0.0
+    #: the share of ``tolerance`` a shadow map's interpolation may take at a node before an exact shadow ray
+    #: replaces it: HYBRID_SHARE for ``shadows: hybrid``, inf for ``map`` (always trusted), 0 for ``exact``
+    map_share: float = 0.0
 
 
 def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
@@ -84,7 +90,8 @@ def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
     max_length = preset["max_length"] * diagonal if settings.max_length is None else settings.max_length
     return Quality(tolerance=float(pick("tolerance")), max_tau=float(pick("max_tau")), max_length=float(max_length),
                    max_angle=float(pick("max_angle")), cutoff=float(pick("cutoff")),
-                   tol_t=float(pick("root_tolerance")) * diagonal)
+                   tol_t=float(pick("root_tolerance")) * diagonal,
+                   map_share={"map": math.inf, "hybrid": HYBRID_SHARE}.get(settings.shadows, 0.0))
 
 
 def scene_quality(scene) -> Quality:

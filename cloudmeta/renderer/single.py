@@ -10,13 +10,16 @@ from .bands import run_bands
 
 
 def render_single(scene, packed, window, progress):
-    """(image, nearest) of the tile ``window``: the H x W x 4 float64 radiance and alpha, and per pixel the
-    distance to the nearest surface hit (inf where none). ``packed``: a pack.Packed of the scene."""
+    """(image, nearest, counts) of the tile ``window``: the H x W x 4 float64 radiance and alpha, per pixel the
+    distance to the nearest surface hit (inf where none), and per pixel what its light cost (H x W x 4:
+    quadrature nodes, exact shadow rays, shadow-map lookups, lookups trusted; kernels.lighting.COUNT_*).
+    ``packed``: a pack.Packed of the scene."""
     w, h = scene.image.width, scene.image.height
     image = np.zeros((h, w, 4), np.float64)
     nearest = np.full((h, w), np.inf)
+    counts = np.zeros((h, w, 4), np.float64)
     camera, records, quad = packed.camera, packed.records, packed.quadrature
-    run_bands(lambda row0, p0, p1: render_pixels(camera, records, quad, row0, p0, p1, image, nearest), window, w,
-              progress)
+    run_bands(lambda row0, p0, p1: render_pixels(camera, records, quad, row0, p0, p1, image, nearest, counts),
+              window, w, progress)
     (r_lo, r_hi), (c_lo, c_hi) = window
-    return image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi]
+    return image[r_lo:r_hi, c_lo:c_hi], nearest[r_lo:r_hi, c_lo:c_hi], counts[r_lo:r_hi, c_lo:c_hi]

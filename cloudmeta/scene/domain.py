@@ -9,7 +9,7 @@ import numpy as np
 
 from . import limits as lim
 from .document import fmt_numbers
-from .vocabulary import SHADOW_MAP_RESOLUTION
+from .vocabulary import MAP_SHADOWS, SHADOW_MAP_RESOLUTION
 
 def _phase_peak(phase):
     """The largest value of the phase function (at cos theta = +-1)."""
@@ -92,7 +92,7 @@ def _check_memory(ctx, scene):
     balls = sum(len(t.blob) for t in scene.media + scene.surfaces)
     directional = sum(l.casts_map for l in scene.lights)
     res = scene.render.shadow_map or SHADOW_MAP_RESOLUTION
-    texels = directional * res * res if scene.render.shadows == "map" and scene.media else 0
+    texels = directional * res * res if scene.render.shadows in MAP_SHADOWS and scene.media else 0
     need, have = lim.render_memory(w, h, balls, texels), lim.physical_memory()
     if have is not None and need > lim.MEMORY_FRACTION * have:
         key = "render.shadow_map" if texels * lim.BYTES_PER_TEXEL > w * h * lim.BYTES_PER_PIXEL else "image"

@@ -21,8 +21,13 @@ assert tuple(PHASE_PARAMS) == PHASES
 QUALITIES = ("draft", "default", "fine", "reference")
 #: the relative RMSE, against the scattered light, that each preset aims at (docs/error_estimate.md)
 QUALITY_TARGETS = {"draft": 3e-3, "default": 1e-3, "fine": 3e-4}
-#: render.shadows: exact shadow rays, or light-space maps for directional lights
-SHADOW_MODES = ("exact", "map")
+#: render.shadows: exact shadow rays; light-space maps for directional lights; or maps where their own bound
+#: on their error keeps the quality's tolerance and exact shadow rays elsewhere (hybrid)
+SHADOW_MODES = ("exact", "map", "hybrid")
+#: render.shadows that build shadow maps
+MAP_SHADOWS = ("map", "hybrid")
+#: the share of the quality's tolerance a hybrid map's interpolation may take at a node (renderer.quality)
+HYBRID_SHARE = 0.25
 #: render.scattering: the estimators (renderer.frame.ESTIMATORS)
 SCATTERING_MODES = ("single", "multiple", "approximate")
 #: render.method of the approximate mode (renderer.approximate)

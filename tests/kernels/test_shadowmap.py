@@ -1,13 +1,16 @@
-"""Light-space shadow maps (render: {shadows: map}): exact in depth along texel rays, close to exact
-shadows across them, and the same map whether or not the single tracing pass overflows."""
+"""Light-space shadow maps (render: {shadows: map | hybrid}): exact in depth along texel rays, close to exact
+shadows across them, and the same map whether or not the single tracing pass overflows; the hybrid keeps
+the map only where its own error estimate allows, and counts what it did."""
 import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numba
 import numpy as np
 
 import cloudmeta as cm
 from cloudmeta.kernels.shadowmap import map_optical_depth
+from cloudmeta.renderer.frame import render_frame
 
 ROOT = Path(__file__).resolve().parents[2]
 pack_module = sys.modules["cloudmeta.renderer.pack"]
@@ -44,7 +47,21 @@ def test_map_is_exact_in_depth_on_texel_rays():
     exact = cm.optical_depth(blob, points, np.broadcast_to(-ray, points.shape).copy(), density=m.density.mode,
                              scale=m.density.scale)
     assert np.count_nonzero(exact > 0.1) > 20  # the points do sample the cloud's shadow
-    np.testing.assert_allclose(got, exact, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(got[:, 0], exact, rtol=1e-10, atol=1e-10)
+
+
+def test_bilinear_lookup_lies_within_its_texels_bounds():
+    """Between texel rays the bilinear depth lies between the least and greatest of its four texels."""
+    s, maps = cumulus_map(96)
+    g = maps.geo[maps.map_of[0]]
+    origin, e1, e2, ray, size = g[:3], g[3:6], g[6:9], g[9:12], g[12]
+    rng = np.random.default_rng(5)
+    u = rng.uniform(10, 86, (400, 2))
+    depth = rng.uniform(0.0, np.linalg.norm(s.media[0].blob.bbox[1] - s.media[0].blob.bbox[0]), 400)
+    points = origin + u[:, :1] * size * e1 + u[:, 1:] * size * e2 + depth[:, None] * ray
+    bil = np.array([map_optical_depth(p, maps, maps.map_of[0]) for p in points])
+    assert np.count_nonzero(bil[:, 2] > bil[:, 1]) > 50  # the points do sample the shadow's edges
+    assert np.all((bil[:, 1] <= bil[:, 0] + 1e-12) & (bil[:, 0] <= bil[:, 2] + 1e-12))
 
 
 def test_single_pass_overflow_gives_the_same_map(monkeypatch):
@@ -61,3 +78,45 @@ def test_map_shadows_close_to_exact_shadows():
     mapped = cm.render(cumulus(shadows="map", shadow_map=384), progress=False)
     err = np.sqrt(np.mean((mapped[..., :3] - exact[..., :3]) ** 2)) / np.sqrt(np.mean(exact[..., :3] ** 2))
     assert 0 < err < 1e-3
+
+
+def scattered_rel_rmse(img, ref, background):
+    scattered = ref[..., :3] - np.asarray(background) * (1.0 - ref[..., 3:4])
+    return np.sqrt(np.mean((img[..., :3] - ref[..., :3]) ** 2)) / scattered.mean()
+
+
+def test_hybrid_shadows_keep_the_quality_and_count_their_work():
+    """shadows: hybrid against exact shadow rays at 48 x 48, default: within a tenth of the target relative
+    to the scattered light; part of the nodes take the map, the rest an exact ray,
+    and the counters add up: per pixel, lookups = nodes (one directional light), trusted + exact = lookups."""
+    exact = render_frame(cumulus(48, quality="default"), progress=False)
+    hybrid = render_frame(cumulus(48, quality="default", shadows="hybrid"), progress=False)
+    plain = render_frame(cumulus(48, quality="default", shadows="map"), progress=False)
+    bg = cumulus().background
+    err = scattered_rel_rmse(np.float64(hybrid.image), np.float64(exact.image), bg)
+    err_map = scattered_rel_rmse(np.float64(plain.image), np.float64(exact.image), bg)
+    assert 0 < err < 1e-4 and err < err_map
+    ce, ch = exact.cost(), hybrid.cost()
+    assert ce["media_pixels"] == ch["media_pixels"] > 100
+    assert ce["exact_rays"] == ce["nodes"] > 20 and ce["lookups"] == ce["trusted"] == 0
+    n = hybrid.counts
+    np.testing.assert_array_equal(n[..., 2], n[..., 0])
+    np.testing.assert_array_equal(n[..., 3] + n[..., 1], n[..., 2])
+    assert 0.2 * ch["nodes"] < ch["trusted"] < ch["nodes"]
+    # shadows: map trusts every lookup
+    np.testing.assert_array_equal(plain.counts[..., 3], plain.counts[..., 2])
+    assert plain.cost()["exact_rays"] == 0
+
+
+def test_hybrid_shadows_same_whatever_the_thread_count():
+    s = cumulus(24, quality="default", shadows="hybrid")
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = render_frame(s, progress=False)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = render_frame(s, progress=False)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(one.image, two.image)
+    np.testing.assert_array_equal(one.counts, two.counts)

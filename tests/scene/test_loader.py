@@ -240,7 +240,7 @@ BAD_VALUES = [
     ("render max_length", ("render", "max_length"), -1, "render.max_length", "> 0"),
     ("render cutoff 1", ("render", "cutoff"), 1.0, "render.cutoff", "[0, 1)"),
     ("render root_tolerance", ("render", "root_tolerance"), 0, "render.root_tolerance", "> 0"),
-    ("render shadows", ("render", "shadows"), "soft", "render.shadows", "exact, map"),
+    ("render shadows", ("render", "shadows"), "soft", "render.shadows", "exact, map, hybrid"),
     ("render shadow_map 1", ("render", "shadow_map"), 1, "render.shadow_map", ">= 2"),
     ("output exposure", ("output", "exposure"), "bright", "output.exposure", "finite number"),
     ("output path", ("output", "path"), 3, "output.path", "string"),
