@@ -295,7 +295,8 @@ FASTMATH = False
 #: flags for serial kernels
 NJIT = dict(cache=CACHE, fastmath=FASTMATH, nogil=True, error_model="numpy")
 #: flags for the small helpers of hot loops: inlined into their callers at numba's IR level, so that no
-#: call boundary (and no reference counting of the arrays passed) remains in the loop
+#: call boundary remains in the loop (the arrays they bind are still reference-counted where the helper
+#: branches: the loops read borrowed records, kernels.borrow)
 NJIT_INLINE = dict(NJIT, inline="always")
 #: flags for the few kernels that loop over rays or points with prange (the public ray API, the grid)
 NJIT_PARALLEL = dict(NJIT, parallel=True)

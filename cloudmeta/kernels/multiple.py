@@ -48,6 +48,7 @@ from .features import surface_hit
 from .camera import background_radiance, camera_ray
 from .lighting import light_at_node
 from .raywork import alloc_ray_work, elementary_intervals
+from .borrow import borrow, hold_grown, release
 from .records import CameraSegment, PathKey, PathVectors, RayWork
 from .sampling import free_flight, sample_phase_cos, sobol4, turn, uniform
 
@@ -250,8 +251,13 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
     paths r, r + spp, r + 2 spp, ...)."""
     width, spp, paths = camera.width, camera.spp, settings.paths
     strata = int(math.ceil(math.sqrt(spp)))
-    work = alloc_ray_work(scene)
-    camera_work = alloc_ray_work(scene)
+    # borrowed records, as in single.render_pixels (kernels.borrow)
+    own = alloc_ray_work(scene)
+    camera_own = alloc_ray_work(scene)
+    work = borrow(own)
+    camera_work = borrow(camera_own)
+    scene = borrow(scene)
+    quad = borrow(quad)
     vectors = PathVectors(np.empty(3), np.empty(3), np.empty(3), np.empty(3))
     d = np.empty(3)
     est = np.empty(3)
@@ -277,4 +283,8 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
                 for c in range(3):
                     acc[c] += est[c]
                     acc2[c] += est[c] * est[c]
+        own, work = hold_grown(own, work)
+        camera_own, camera_work = hold_grown(camera_own, camera_work)
         _store_mean(acc, acc2, paths, i, j, mean, stderr)
+    release(own)
+    release(camera_own)

@@ -19,6 +19,7 @@ from .config import NJIT, NJIT_INLINE
 from .bernstein import bernstein_cumulative, bernstein_mean
 from .media import alloc_ray_pieces, collect_media
 from .sweep import alloc_scratch, insertion_argsort
+from .borrow import borrow
 
 
 @njit(**NJIT)
@@ -35,6 +36,7 @@ def trace_texel_chunk(geo, res, med, tol_t, chunk, n_chunks, cap, counts, used, 
     cap tells the caller to call again with a larger cap (the chunk's rows are then incomplete). nogil,
     with its own work arrays: cloudmeta.renderer.pack runs the chunks on several threads."""
     n = res * res
+    med = borrow(med)  # the caller holds the medium records for the whole call (kernels.borrow)
     scratch = alloc_scratch(np.int64(64))
     rp = alloc_ray_pieces(np.int64(64), med.start.shape[0] - 1)
     cand = np.empty(max(med.centers.shape[0], 1), np.int64)

@@ -63,6 +63,7 @@ from numba.extending import overload
 
 from .config import NJIT, NJIT_INLINE, OVERLOAD
 from .bernstein import bernstein_cumulative, bernstein_eval
+from .borrow import borrow, hold_grown, release
 from .bvh import misses_root_boxes
 from .camera import background_radiance, background_sample, camera_ray
 from .features import misses_surfaces, surface_hit
@@ -484,7 +485,12 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth, counts):
     """
     width, spp = camera.width, camera.spp
     strata = int(math.ceil(math.sqrt(spp)))
-    work = alloc_ray_work(scene)
+    # borrowed records cost no reference counting in the per-node loops (kernels.borrow): the scene and
+    # the rule outlive this call, ``own`` holds the work arrays until its end
+    own = alloc_ray_work(scene)
+    work = borrow(own)
+    scene = borrow(scene)
+    quad = borrow(quad)
     px_out = np.empty(5)
     d = np.empty(3)
     for p in range(p0, p1):
@@ -507,6 +513,7 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth, counts):
             acc2 += px_out[2]
             acc3 += px_out[3]
             nearest = min(nearest, px_out[4])
+        own, work = hold_grown(own, work)
         depth[i, j] = nearest
         tally = work.nodes.count
         for q in range(4):
@@ -516,5 +523,6 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth, counts):
         image[i, j, 1] = acc1 / spp
         image[i, j, 2] = acc2 / spp
         image[i, j, 3] = 1.0 - acc3 / spp  # alpha = 1 - T(0, t_end)
+    release(own)
 
 
