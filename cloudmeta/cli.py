@@ -25,6 +25,9 @@ def _render(args):
         if args.error:
             raise InputError("--error: only for a single image, not with --frames, --tiles, --workers, "
                              "--scheduler or an animated scene")
+        if args.denoise:
+            raise InputError("--denoise: only for a single image, not with --frames, --tiles, --workers, "
+                             "--scheduler or an animated scene")
         return _frames(args)  # a sequence, tiles or a cluster (docs/animation.md)
     from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_outputs
     from .scene import load_scene
@@ -33,6 +36,9 @@ def _render(args):
         check_exposure(args.exposure, "--exposure")  # nan, inf, 2000: 2 ** exposure overflows
     overrides = {"quality": args.quality, "shadows": args.shadows, "shadow_map": args.shadow_map}
     scene = load_scene(args.scene, width=args.width, height=args.height, spp=args.spp, render=overrides)
+    if args.denoise:
+        from .renderer.denoise import require_denoiser
+        require_denoiser(scene)  # before any work: the mode and the optional extra
     outputs = _outputs(args, scene)
     for label, path, ext in outputs:
         check_output_path(path, ext, label, scene.inputs)
@@ -47,14 +53,17 @@ def _render(args):
     # every output is created now as a temporary file and renamed into place only when all are written
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
-        image, error, took, approximation, estimated = _render_image(
-            scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate)
-        encode_outputs(image, tmps, scene.render.colourspace, exposure, error)
+        image, error, took, approximation, estimated, raw = _render_image(
+            scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate, denoise=args.denoise)
+        encode_outputs(image, tmps, scene.render.colourspace, exposure, error, raw)
     if error is not None:
         target = (f"render.error {scene.render.error:g}" if scene.render.error is not None else
                   f"quality {scene.render.quality}: {QUALITY_TARGETS.get(scene.render.quality, 'none')}")
         print(f"cloudmeta: estimated relative RMSE {estimated:.2e} (target of {target}; "
               f"per pixel in the EXR's channels error.R/G/B)")
+    if args.denoise:
+        print("cloudmeta: denoised the Monte Carlo part (Intel Open Image Denoise); the image before it is in "
+              "the EXR's channels raw.R/G/B/A")
     if approximation is not None:
         print(f"cloudmeta: the approximation's estimated relative RMSE against unbiased multiple scattering: "
               f"{approximation.rel_rmse:.3f} +- {approximation.stderr:.3f} (from {approximation.pixels} of "
@@ -80,21 +89,21 @@ def _outputs(args, scene):
     return out
 
 
-def _render_image(scene, progress, error=False):
-    """(image, error or None, seconds, the approximation's error or None, the estimated relative RMSE or None):
-    the render, on a thread of its own (``interruptible``)."""
+def _render_image(scene, progress, error=False, denoise=False):
+    """(image, error or None, seconds, the approximation's error or None, the estimated relative RMSE or None,
+    the image before denoising or None): the render, on a thread of its own (``interruptible``)."""
     import numpy as np
 
     from .renderer import render_frame
     compile_notice()
     start = time.perf_counter()
-    result = interruptible(render_frame, scene, progress=progress, error=error)
+    result = interruptible(render_frame, scene, progress=progress, error=error, denoise=denoise)
     image, err = result.image, result.error
     took = time.perf_counter() - start
     if not np.all(np.isfinite(image)):
         raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
                                            "the lights' irradiance or intensity (README: Limits)")
-    return image, err, took, result.approximation, result.estimated
+    return image, err, took, result.approximation, result.estimated, result.raw
 
 
 def _frames(args):
@@ -187,6 +196,9 @@ def build_parser():
                         "maps where their error bound allows and exact rays elsewhere (hybrid)")
     r.add_argument("--shadow-map", type=_texels, help=f"texels per side of a shadow map (default {SHADOW_MAP_RESOLUTION})")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: the scene's)")
+    r.add_argument("--denoise", action="store_true",
+                   help="multiple scattering: denoise the Monte Carlo part with Intel Open Image Denoise (the "
+                        "optional extra pyoidn); the EXR keeps the image before it as channels raw.R/G/B/A")
     r.add_argument("--error", action="store_true",
                    help="estimate each pixel's error (a second, coarser render) and write it into the EXR as "
                         "channels error.R/G/B; prints the estimated relative RMSE (docs/error_estimate.md)")

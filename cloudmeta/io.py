@@ -29,6 +29,8 @@ from .scene.limits import MAX_EXPOSURE
 _CHANNELS = "RGBA"
 #: the EXR channels of the per-pixel error estimate (render(..., error=True))
 ERROR_CHANNELS = ("error.R", "error.G", "error.B")
+#: the image before denoising (render(..., denoise=True); renderer.denoise), beside the denoised one
+RAW_CHANNELS = ("raw.R", "raw.G", "raw.B", "raw.A")
 #: the process's umask, read once at import (reading it means setting it): outputs get the permissions an
 #: ordinary open() would give them, not mkstemp's 0600
 _UMASK = os.umask(0o022)
@@ -241,19 +243,20 @@ def check_image(image):
     return arr.astype(np.float64, copy=False)
 
 
-def write_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False, error=None):
+def write_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False, error=None, raw=None):
     """Write an H x W x 3 (RGB) or H x W x 4 (RGBA) linear image as a single-part scanline OpenEXR.
 
     Channels are FLOAT, or HALF with ``half=True``; the header carries the ``chromaticities`` of
     ``colourspace`` so that readers know the primaries and white of the linear values. ``error``: an
     H x W x 3 estimate of each pixel's absolute error (cloudmeta.render(..., error=True)), written as the
-    extra channels error.R, error.G, error.B (FLOAT).
+    extra channels error.R, error.G, error.B (FLOAT). ``raw``: the image before denoising, of the image's
+    shape (cloudmeta.render_frame(..., denoise=True).raw), written as raw.R, raw.G, raw.B (raw.A) (FLOAT).
     """
     with _api_output(path) as tmp:
-        encode_exr(image, tmp, colourspace, half, error)
+        encode_exr(image, tmp, colourspace, half, error, raw)
 
 
-def encode_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False, error=None):
+def encode_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False, error=None, raw=None):
     """``write_exr`` straight to ``path``, without a temporary file (for callers that hold one already)."""
     arr = check_image(image)
     if not isinstance(half, (bool, np.bool_)):
@@ -273,6 +276,12 @@ def encode_exr(image, path, colourspace=DEFAULT_COLOURSPACE, half=False, error=N
             raise InputError(f"error: expected an H x W x 3 array of the image's size, got shape {err.shape}")
         for i, name in enumerate(ERROR_CHANNELS):
             channels[name] = np.ascontiguousarray(err[:, :, i].astype(np.float32))
+    if raw is not None:
+        before = np.asarray(raw, np.float64)
+        if before.shape != arr.shape:
+            raise InputError(f"raw: expected an array of the image's shape {arr.shape}, got shape {before.shape}")
+        for i, name in enumerate(RAW_CHANNELS[:arr.shape[2]]):
+            channels[name] = np.ascontiguousarray(before[:, :, i].astype(np.float32))
     import OpenEXR  # here, not at import: a render that writes no EXR should not pay for it
     header["compression"], header["type"] = OpenEXR.ZIP_COMPRESSION, OpenEXR.scanlineimage
     try:
@@ -330,11 +339,11 @@ def encode_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
     pixels.save(os.fspath(path), format="PNG")
 
 
-def encode_outputs(image, tmps, colourspace=DEFAULT_COLOURSPACE, exposure=0.0, error=None):
+def encode_outputs(image, tmps, colourspace=DEFAULT_COLOURSPACE, exposure=0.0, error=None, raw=None):
     """The one writer of a render's files: the EXR to ``tmps[0]`` (with the ``error`` channels if given) and,
     where ``tmps`` has a second path, the PNG preview to it. ``tmps`` are atomic_outputs' temporary files, so
-    both are renamed into place together or neither is."""
-    encode_exr(image, tmps[0], colourspace=colourspace, error=error)
+    both are renamed into place together or neither is. ``raw``: the image before denoising (raw.* channels)."""
+    encode_exr(image, tmps[0], colourspace=colourspace, error=error, raw=raw)
     if len(tmps) > 1:
         encode_png(image, tmps[1], exposure=exposure, colourspace=colourspace)
 

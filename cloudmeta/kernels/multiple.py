@@ -41,9 +41,10 @@ from numba import njit
 
 from .config import NJIT
 from .bernstein import bernstein_eval, bernstein_mean
-from .media import collect_media, n_media
+from .media import collect_media, medium_blob, n_media
+from .metaball import gradient_sum
 from .optics import phase
-from .bvh import misses_root_boxes
+from .bvh import bvh_point_candidates, misses_root_boxes
 from .features import surface_hit
 from .camera import background_radiance, camera_ray
 from .lighting import light_at_node
@@ -288,3 +289,52 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
         _store_mean(acc, acc2, paths, i, j, mean, stderr)
     release(own)
     release(camera_own)
+
+
+@njit(**NJIT)
+def aux_pixels(camera, scene, quad, row0, p0, p1, albedo, normal):
+    """The denoiser's auxiliary images (renderer.denoise), pixels p0 .. p1 - 1 as in render_pixels: on each
+    pixel's first camera ray, where it first enters a medium (before any surface), albedo[i, j] = that
+    medium's albedo (grey) and normal[i, j] = the unit outward normal of its isosurface there, -grad F /
+    |grad F|; both 0 where the ray meets no medium. nogil, with its own work arrays."""
+    width = camera.width
+    strata = int(math.ceil(math.sqrt(camera.spp)))
+    own = alloc_ray_work(scene)
+    work = borrow(own)
+    scene = borrow(scene)
+    med = scene.media
+    d = np.empty(3)
+    x = np.empty(3)
+    for p in range(p0, p1):
+        i = row0 + p // width
+        j = p % width
+        for c in range(3):
+            albedo[i, j, c] = 0.0
+            normal[i, j, c] = 0.0
+        camera_ray(camera, i, j, np.int64(0), strata, d)
+        if misses_root_boxes(camera.position, d, med.bvh):
+            continue
+        scratch, t_hit, _ = surface_hit(camera.position, d, scene.surfaces, quad.tol_t, work)
+        scratch, rp, n = collect_media(camera.position, d, t_hit, med, quad.tol_t, scratch, work.pieces, work.cand,
+                                       work.stack)
+        work = RayWork(scratch, rp, work.cand, work.stack, work.nodes)
+        if n == 0:
+            continue
+        first = 0
+        for k in range(1, n):
+            if rp.t0[k] < rp.t0[first]:
+                first = k
+        m = rp.medium[first]
+        for c in range(3):
+            x[c] = camera.position[c] + rp.t0[first] * d[c]
+        n_cand = bvh_point_candidates(x, med.bvh, med.bvh.root[m], work.stack, work.cand)
+        gx, gy, gz = gradient_sum(x, medium_blob(med, m), work.cand, 0, n_cand)
+        size = math.sqrt(gx * gx + gy * gy + gz * gz)
+        for c in range(3):
+            albedo[i, j, c] = med.albedo[m]
+        if size > 0.0:
+            normal[i, j, 0] = -gx / size
+            normal[i, j, 1] = -gy / size
+            normal[i, j, 2] = -gz / size
+        own, work = hold_grown(own, work)
+    release(own)

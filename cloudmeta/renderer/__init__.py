@@ -8,6 +8,7 @@ pack      -- the scene packed into the kernels' records, once per render
 bands     -- bands of rows on threads, the progress bar, tiles
 single    -- the single-scattering driver (the deterministic part of every render)
 multiple  -- the multiple-scattering driver (the Monte Carlo part)
+denoise   -- the optional denoiser of the Monte Carlo part (pyoidn)
 """
 from .frame import ESTIMATORS, RenderResult, render, render_frame
 

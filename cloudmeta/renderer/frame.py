@@ -15,6 +15,7 @@ from ..errors import InputError
 from ..scene.schema import Scene
 from ..scene.vocabulary import SCATTERING_MODES
 from .bands import tile_window
+from .denoise import aux_images, denoise_paths, require_denoiser
 from .estimate import estimated_rel_rmse, with_estimate
 from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, render_multiple
@@ -65,6 +66,9 @@ class RenderResult:
     #: per pixel what the single-scattering render's light cost (H x W x 4 float64: quadrature nodes, exact
     #: shadow rays, shadow-map lookups, lookups trusted; renderer.single.render_single); see ``cost``
     counts: np.ndarray | None = None
+    #: with denoise=True, the image before its Monte Carlo part was denoised (renderer.denoise); ``error`` and
+    #: ``estimated`` are of this raw image
+    raw: np.ndarray | None = None
 
     def cost(self):
         """Per pixel with media (alpha > 0), the mean count of quadrature nodes, exact shadow rays, map lookups
@@ -76,10 +80,21 @@ class RenderResult:
                     lookups=total[2] / n, trusted=total[3] / n)
 
 
-def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, error=False) -> RenderResult:
-    """Render the scene (or the tile ``rows`` x ``columns`` of it) into a RenderResult; see ``render``."""
+def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, error=False,
+                 denoise=False) -> RenderResult:
+    """Render the scene (or the tile ``rows`` x ``columns`` of it) into a RenderResult; see ``render``.
+    With ``denoise=True`` (multiple scattering, a whole frame) the paths' part is denoised
+    (renderer.denoise) and ``raw`` keeps the image before it."""
     if not isinstance(scene, Scene):  # issue #15: the API's wrong types are InputErrors naming the argument
         raise InputError(f"scene: expected a cloudmeta Scene (from load_scene), got {type(scene).__name__}")
+    if not isinstance(denoise, (bool, np.bool_)):
+        raise InputError(f"denoise: expected True or False, got {denoise!r}")
+    denoiser = None
+    if denoise:  # checked before any work
+        if rows is not None or columns is not None:
+            raise InputError("denoise: a whole frame only (the filter reads neighbouring pixels; denoise the "
+                             "assembled frame)")
+        denoiser = require_denoiser(scene)
     window = tile_window(rows, scene.image.height, "rows"), tile_window(columns, scene.image.width, "columns")
     estimator = ESTIMATORS[scene.render.scattering]
     if estimator.check is not None:
@@ -105,6 +120,12 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     if estimator.paths is not None:
         mean, stderr = estimator.paths(scene, seed=seed, progress=progress, rows=rows, columns=columns,
                                        packed=packed)
+        raw = None
+        if denoiser is not None:
+            raw = image.copy()
+            raw[..., :3] += mean
+            albedo, _ = aux_images(scene, packed, window)  # the normals: worse guides here (renderer.denoise)
+            mean = denoise_paths(denoiser, mean, albedo, None, image[..., 3])
         image[..., :3] += mean
         if err is not None:
             err = np.sqrt(err * err + stderr * stderr)
@@ -115,10 +136,11 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         approximation = estimator.approximation(scene, image, packed, window, seed=seed)
     return RenderResult(image=image.astype(np.float32), depth=nearest.copy(),
                         error=None if not error else err.astype(np.float32), approximation=approximation,
-                        scattered=scattered, estimated=estimated, counts=counts)
+                        scattered=scattered, estimated=estimated, counts=counts,
+                        raw=None if denoiser is None else raw.astype(np.float32))
 
 
-def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False):
+def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False, denoise=False):
     """Render the scene: an H x W x 4 float32 array, linear RGB of the working colourspace and alpha.
 
     With ``depth=True`` returns (image, depth): depth (H x W, float64) is, per pixel, the distance along
@@ -133,8 +155,12 @@ def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=
     H x W x 3 float32 estimate of each pixel's absolute error: the difference to a render with coarser
     quadrature settings (renderer.estimate; docs/error_estimate.md). With ``render.error`` set (a target
     relative RMSE) the settings are refined until the estimate is at most the target.
+    With ``denoise=True`` (``render.scattering: multiple``, a whole frame; the optional extra pyoidn) the
+    Monte Carlo part is denoised by Intel Open Image Denoise (renderer.denoise); the error, if asked for,
+    stays that of the raw image (``render_frame``'s ``raw``).
     ``render_frame`` gives the same as one RenderResult.
     """
-    result = render_frame(scene, progress=progress, seed=seed, rows=rows, columns=columns, error=error)
+    result = render_frame(scene, progress=progress, seed=seed, rows=rows, columns=columns, error=error,
+                          denoise=denoise)
     out = (result.image,) + ((result.depth,) if depth else ()) + ((result.error,) if error else ())
     return out if len(out) > 1 else out[0]
