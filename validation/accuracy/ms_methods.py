@@ -1,0 +1,87 @@
+"""Time against error for every way cloudmeta renders multiply scattered light (issue #25 item 4): single
+scattering, the approximate mode (octaves), unbiased multiple scattering and the same denoised, on
+validation.accuracy.approximate's six report scenes, against their converged references.
+
+Per scene (64 x 48 unless --size, ambient removed; the references of approximate.py, 1,024 paths unless
+--paths, seed 0): single scattering and the octaves at ``default``; multiple scattering at ``default`` with
+each of ``--spp`` paths per pixel (seed 1), raw and with ``denoise=True``. The time is the whole
+render_frame call, kernels loaded; the error the relative RMSE over the mean scattered radiance, the
+reference's own variance subtracted (approximate.rel_error). Prints a table, writes
+validation/results/ms_methods_SIZE.csv and plots error against time per scene to ms_methods_SIZE.png
+(the grid method of the approximate mode is not built).
+
+    python -m validation.accuracy.ms_methods [--size 64] [--paths 1024] [--spp 4 16 64 256] [--no-csv]
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from cloudmeta.renderer.frame import render_frame
+from validation.accuracy.approximate import REPORT, reference, rel_error, scene_of
+from validation.common import RESULTS, parse, parser, pyplot, run_main, save_figure, with_settings, write_csv
+
+
+def _timed(scene, **kw):
+    t0 = time.perf_counter()
+    result = render_frame(scene, progress=False, **kw)
+    return result.image[..., :3].astype(np.float64), time.perf_counter() - t0
+
+
+def main(argv=None):
+    ap = parser(__doc__, no_csv=True)
+    ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--paths", type=int, default=1024, help="paths per pixel of the references")
+    ap.add_argument("--spp", type=int, nargs="+", default=[4, 16, 64, 256])
+    args, _ = parse(ap, argv)
+    rows = []
+    for name, path in REPORT.items():
+        u, se, bt, _ = reference(name, path, args.size, args.paths)
+        single = with_settings(scene_of(path, args.size), quality="default")
+        approx = with_settings(scene_of(path, args.size, "approximate"), quality="default")
+        render_frame(with_settings(scene_of(path, 4, "multiple"), ms_spp=1), progress=False)  # kernels loaded
+        runs = [("single", single, {}), ("octaves", approx, {})]
+        for n in args.spp:
+            s = with_settings(scene_of(path, args.size, "multiple"), quality="default", ms_spp=n)
+            runs += [(f"paths {n}", s, dict(seed=1)), (f"denoised {n}", s, dict(seed=1, denoise=True))]
+        for method, scene, kw in runs:
+            image, seconds = _timed(scene, **kw)
+            err = rel_error(image, u, se, bt)
+            rows.append(dict(scene=name, method=method, seconds=round(seconds, 3), error=round(err, 5)))
+            print(f"{name:<14} {method:<13} {seconds:8.2f} s  error {err:.4f}", flush=True)
+    if not args.no_csv:
+        write_csv(RESULTS / f"ms_methods_{args.size}.csv", rows)
+        plot(rows, RESULTS / f"ms_methods_{args.size}.png", args.size)
+    return dict(rows=rows)
+
+
+def plot(rows, out, size):
+    plt = pyplot()
+    names = list(dict.fromkeys(r["scene"] for r in rows))
+    fig, axes = plt.subplots(2, 3, figsize=(12, 7), sharex=True, sharey=True)
+    for ax, name in zip(axes.flat, names):
+        mine = [r for r in rows if r["scene"] == name]
+        for kind, style in (("paths", "o-"), ("denoised", "s-")):
+            pts = [r for r in mine if r["method"].startswith(kind)]
+            ax.plot([r["seconds"] for r in pts], [r["error"] for r in pts], style,
+                    label="multiple, unbiased" if kind == "paths" else "multiple, denoised")
+        for method, marker in (("single", "v"), ("octaves", "^")):
+            r = next(r for r in mine if r["method"] == method)
+            ax.plot([r["seconds"]], [r["error"]], marker, markersize=9,
+                    label="single scattering" if method == "single" else "approximate (octaves)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(name, fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("render time (s, 2 cores)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("relative RMSE (of the scattered light)")
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(f"Multiply scattered light: time against error, {size} px wide, against 1,024-path references")
+    save_figure(fig, out)
+
+
+if __name__ == "__main__":
+    run_main(main)
