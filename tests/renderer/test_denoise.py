@@ -122,3 +122,11 @@ def test_cli_denoise_refuses_a_single_scattering_scene(tmp_path, capsys):
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and "denoise: only a multiple-scattering render" in err[0]
     assert not (tmp_path / "s.exr").exists()
+
+
+def test_cli_denoise_refuses_a_sequence(ball, tmp_path, capsys):
+    assert main(["render", str(ball.path), "-o", str(tmp_path / "f.exr"), "--frames", "0:1", "--denoise",
+                 "-q"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "--denoise: only for a single image" in err[0]
+    assert not list(tmp_path.glob("f*.exr"))
