@@ -9,7 +9,6 @@ each kernel is compiled in at most two versions (with and without), not four.
 
 Each helper is also a plain Python function with the same meaning, for calls from Python.
 """
-
 import numpy as np
 from numba.core import types
 from numba.extending import overload
@@ -57,7 +56,6 @@ def map_depth(x, maps, mi):
     """(tau, tau_lo, tau_hi) towards the light of map mi (>= 0) at x, from its shadow map
     (shadowmap.map_optical_depth)."""
     return map_optical_depth(x, maps, mi)
-
 
 
 @overload(misses_surfaces, **OVERLOAD)
@@ -110,4 +108,3 @@ def _map_depth(x, maps, mi):
     if _absent(maps):
         return lambda x, maps, mi: (0.0, 0.0, 0.0)  # never asked: light_map gives -1 without maps
     return lambda x, maps, mi: map_optical_depth(x, maps, mi)
-

@@ -317,7 +317,7 @@ def aux_pixels(camera, scene, quad, row0, p0, p1, albedo, normal):
         scratch, t_hit, _ = surface_hit(camera.position, d, scene.surfaces, quad.tol_t, work)
         scratch, rp, n = collect_media(camera.position, d, t_hit, med, quad.tol_t, scratch, work.pieces, work.cand,
                                        work.stack)
-        work = RayWork(scratch, rp, work.cand, work.stack, work.nodes)
+        own, work = hold_grown(own, RayWork(scratch, rp, work.cand, work.stack, work.nodes))
         if n == 0:
             continue
         first = 0
@@ -336,5 +336,4 @@ def aux_pixels(camera, scene, quad, row0, p0, p1, albedo, normal):
             normal[i, j, 0] = -gx / size
             normal[i, j, 1] = -gy / size
             normal[i, j, 2] = -gz / size
-        own, work = hold_grown(own, work)
     release(own)

@@ -4,12 +4,13 @@ of a multiple-scattering render only.
 The deterministic part of the image (order 1 of every light, the background through the media, surfaces)
 is exact up to the quadrature's tolerance and is never filtered. The paths' mean (renderer.multiple) is
 denoised by OIDN's ``RT`` filter, HDR, guided by a noise-free albedo image: on each pixel's first camera
-ray, the albedo of the medium it enters first (kernels.multiple.aux_pixels), times the pixel's alpha. The same kernel gives the
-outward normal of that medium's isosurface there, which OIDN also accepts; as a guide it made the error
-larger on 13 of 18 cases measured (validation/accuracy/denoise.py, docs/multiple_scattering.md): a cloud's
-light has no edge where the normal of its first surface turns. So it is left out. The denoised image is biased: its error is no longer the paths'
-standard error, which RenderResult.error keeps for the raw image (RenderResult.raw). docs/multiple_scattering.md
-gives how far it is from the converged image.
+ray, the albedo of the medium it enters first (kernels.multiple.aux_pixels), times the pixel's alpha. The
+same kernel gives the outward normal of that medium's isosurface there, which OIDN also accepts; as a
+guide it made the error larger on 13 of 18 cases measured (validation/accuracy/denoise.py,
+docs/multiple_scattering.md): a cloud's light has no edge where the normal of its first surface turns. So
+it is left out. The denoised image is biased: its error is no longer the paths' standard error, which
+RenderResult.error keeps for the raw image (RenderResult.raw). docs/multiple_scattering.md gives how far
+it is from the converged image.
 
 pyoidn is an optional extra (``pip install -e '.[denoise]'``); without it ``denoise=True`` fails at once,
 before any work, with one line saying so.
