@@ -36,6 +36,23 @@ def light_weight(cos_lv, facing_only, med):
     return w
 
 
+@njit(**NJIT_INLINE)
+def light_geometry(lights, li, pos, l_dir):
+    """Light li seen from pos: l_dir = the unit direction towards it; returns (the factor of its rgb at pos,
+    the shadow ray's length): (1, inf) for a directional light, (1 / r^2, r) for a point light at distance r."""
+    if lights.kind[li] == DIRECTIONAL:
+        for c in range(3):
+            l_dir[c] = lights.vec[li, c]
+        return 1.0, np.inf
+    for c in range(3):
+        l_dir[c] = lights.vec[li, c] - pos[c]
+    dist2 = l_dir[0] * l_dir[0] + l_dir[1] * l_dir[1] + l_dir[2] * l_dir[2]
+    l_max = math.sqrt(dist2)
+    for c in range(3):
+        l_dir[c] /= l_max
+    return 1.0 / dist2, l_max
+
+
 #: inlined: a call per quadrature node would count references to every array of the scene records
 @njit(**NJIT_INLINE)
 def light_at_node(pos, shadow_from, v, facing_only, tau_stop, j_tol, scene, tol_t, scratch, work):
@@ -54,19 +71,7 @@ def light_at_node(pos, shadow_from, v, facing_only, tau_stop, j_tol, scene, tol_
     light_buf = work.nodes.light
     count = work.nodes.count
     for li in range(lights.kind.shape[0]):
-        if lights.kind[li] == DIRECTIONAL:
-            for c in range(3):
-                l_dir[c] = lights.vec[li, c]
-            e_scale = 1.0
-            l_max = np.inf
-        else:
-            for c in range(3):
-                l_dir[c] = lights.vec[li, c] - pos[c]
-            dist2 = l_dir[0] * l_dir[0] + l_dir[1] * l_dir[1] + l_dir[2] * l_dir[2]
-            l_max = math.sqrt(dist2)
-            for c in range(3):
-                l_dir[c] /= l_max
-            e_scale = 1.0 / dist2
+        e_scale, l_max = light_geometry(lights, li, pos, l_dir)
         cos_lv = l_dir[0] * v[0] + l_dir[1] * v[1] + l_dir[2] * v[2]
         light_buf[li, 0] = cos_lv
         if facing_only and cos_lv <= 0.0:

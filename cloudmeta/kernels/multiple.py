@@ -1,57 +1,64 @@
 """Multiple scattering: the orders >= 2 of the light sources, and every order of the environment, by Monte
-Carlo path tracing on the exact optical depth (README, "Multiple scattering").
+Carlo path tracing (README, "Multiple scattering"; docs/model.md §10 and §10.1).
 
 The deterministic single-scattering renderer (kernels.single) already gives order 1 of every light
-exactly; these paths add what it does not count:
+exactly; these paths add what it does not count. A path's flights up to vertex ``track_from`` - 1 are
+*exact* (exact_vertex), the later ones *tracked* (tracked_vertex):
 
-- Free flights are sampled by inverting the exact, piecewise-polynomial optical depth of the ray (no
-  majorant, no null collisions): the ray's media are cut into elementary intervals as for the camera
-  ray (raywork.elementary_intervals), the interval where the depth crosses the target is found, and the
-  degree-7 antiderivative is solved there (sampling.free_flight). Every flight is a *forced collision*:
-  the target is drawn inside the segment's optical depth U and the path weight is multiplied by
-  1 - e^-U, so no path is wasted on escaping.
-- The environment (the background's radiance, uniform or a sky table over elevation) is estimated where a path would escape: after each
-  vertex, the background times the segment's transmittance e^-U (0 where the segment ends on an opaque
-  surface). This counts every order >= 1 of the environment; order 0 (the background seen straight
-  through) is the deterministic renderer's.
-- Next-event estimation towards every light at vertices 2, 3, ...: the exact shadow transmittance
-  (media.shadow_transmittance, blocked by any surface) times sum_m (sigma_s,m / sigma_t) p_m(l . d).
-  Vertex 1 gets none: that is single scattering, counted exactly already.
+- Exact flights invert the exact, piecewise-polynomial optical depth of the ray (no majorant): the ray's
+  media are cut into elementary intervals as for the camera ray (raywork.elementary_intervals), the
+  interval where the depth crosses the target is found, and the degree-7 antiderivative is solved there
+  (sampling.free_flight). Every exact flight is a *forced collision*: the target is drawn inside the
+  segment's optical depth U and the path weight is multiplied by 1 - e^-U. The environment (the
+  background's radiance, uniform or a sky table over elevation) is counted after each such vertex as the
+  background times e^-U (0 where the segment ends on an opaque surface); next-event estimation towards
+  every light at vertices 2, 3, ... takes the exact shadow transmittance (media.shadow_transmittance,
+  blocked by any surface) times sum_m (sigma_s,m / sigma_t) p_m(l . d). Vertex 1 gets none: that is
+  single scattering, counted exactly already.
+- Tracked flights are delta-tracked against the majorant grid (kernels.tracking): the vertex has the same
+  distribution, at a few point evaluations of the field instead of an exact sweep. A flight that gets
+  through sees the environment and ends the path (the escape's probability is the transmittance). Next-event
+  estimation takes an unbiased estimate of T_l (light_transmittance): the shadow map's T as a control
+  variate with an exact shadow ray now and then for a directional light, ratio tracking for a point light.
 - At a vertex the path weight takes sigma_s / sigma_t (all media); the medium whose phase function turns
   the path is picked with probability sigma_s,m / sigma_s, and the new direction is drawn exactly from
   that phase function, so the phase and its density cancel.
-- Russian roulette from vertex ``rr_order`` on (survival probability min(1, weight)); no vertex beyond
+- Russian roulette from vertex ``rr_order`` on (survival probability min(1, weight / the weight at vertex 1):
+  the camera segment's forced collision is shared by all the paths of a camera ray); no vertex beyond
   ``max_order``.
 - Opaque surfaces end a path (they are black to multiply scattered light; see README).
 
 Random numbers: each vertex's flight, lobe and direction come from the quasi-random stream sampling.sobol4
-keyed by (seed, pixel, path, vertex), the medium and the roulette from sampling.uniform keyed by (seed, pixel,
-path, vertex, dimension): a pixel's result does not depend on any other pixel, nor on the threads.
+keyed by (seed, pixel, path, vertex), the medium, the roulette and the tracked walks from sampling.uniform keyed
+by (seed, pixel, path, vertex, dimension): a pixel's result does not depend on any other pixel, nor on the threads.
 
 The scene is the records.SceneRecords that cloudmeta.renderer.pack packs for the single-scattering renderer
 (one packing for both estimators), the quadrature record gives the root tolerance, and one thread's
-work arrays are the camera rays' records.RayWork: the shared stages (kernels.features, media, raywork, lighting, camera: the first surface
-hit, the media on the ray, their elementary intervals, the light at a node with its shadow rays) are
-called as they are, not copied.
+work arrays are the camera rays' records.RayWork: the shared stages (kernels.features, media, raywork,
+lighting, camera: the first surface hit, the media on the ray, their elementary intervals, the light at a
+node with its shadow rays) are called as they are, not copied.
 """
 import math
 
 import numpy as np
 from numba import njit
 
-from .config import NJIT
+from .config import NJIT, NJIT_INLINE
 from .bernstein import bernstein_eval, bernstein_mean
-from .media import collect_media, medium_blob, n_media
+from .media import collect_media, medium_blob, n_media, shadow_transmittance
+from .shadowmap import map_optical_depth
 from .metaball import gradient_sum
 from .optics import phase
 from .bvh import bvh_point_candidates, misses_root_boxes
-from .features import surface_hit
+from .features import surface_hit, surfaces_blocking
 from .camera import background_radiance, camera_ray
-from .lighting import light_at_node
+from .lighting import light_at_node, light_geometry
 from .raywork import alloc_ray_work, elementary_intervals
 from .borrow import borrow, hold_grown, release
 from .records import CameraSegment, PathKey, PathVectors, RayWork
 from .sampling import free_flight, sample_phase_cos, sobol4, turn, uniform
+from .tracking import (DIM_LIGHT, DIM_SPAN, alloc_track_work, delta_flight, release_track,
+                       tracked_transmittance)
 
 #: the independent random dimensions of one vertex (the stream's last key); the flight, the phase's lobe
 #: and its direction come from the vertex's block of the quasi-random stream (sampling.sobol4)
@@ -59,6 +66,8 @@ DIM_MEDIUM = 1
 DIM_ROULETTE = 2
 #: a shadow ray stops once its optical depth passes this (T < 2e-22)
 TAU_STOP = 50.0
+#: the control variate of a light's transmittance at a tracked vertex (light_transmittance)
+CV_PROBABILITY = 0.25
 
 
 @njit(**NJIT)
@@ -164,15 +173,154 @@ def next_event(x, d, k, s, scene, tol_t, j_tol, work, out):
 
 
 @njit(**NJIT)
-def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work, vectors, out):
+def tracked_next_event(x, d, sigma_t, scene, grid, maps, key, vertex, tol_t, work, track, out):
+    """next_event at a tracked vertex x (records.TrackWork track.at_vertex: each medium's sigma_t there,
+    sigma_t their sum): the same sum over lights, each T_l an unbiased estimate (light_transmittance);
+    surfaces still block exactly. Returns work."""
+    med = scene.media
+    lights = scene.lights
+    l_dir = work.nodes.l_dir
+    scratch = work.scratch
+    for li in range(lights.kind.shape[0]):
+        e_scale, l_max = light_geometry(lights, li, x, l_dir)
+        scratch, blocked = surfaces_blocking(x, l_dir, l_max, scene.surfaces, tol_t, scratch, work)
+        if blocked:
+            continue
+        scratch, t_l = light_transmittance(x, l_dir, l_max, li, scene, grid, maps, key, vertex, tol_t, scratch, work,
+                                           track)
+        if t_l == 0.0:
+            continue
+        cos_ld = l_dir[0] * d[0] + l_dir[1] * d[1] + l_dir[2] * d[2]
+        scattered = 0.0
+        for m in range(n_media(med)):
+            sig = track.at_vertex[m]
+            if sig > 0.0:
+                scattered += med.albedo[m] * sig / sigma_t * phase(med.phase[m, 0], med.phase[m, 1], med.phase[m, 2],
+                                                                   med.phase[m, 3], cos_ld)
+        for c in range(3):
+            out[c] += scattered * lights.rgb[li, c] * e_scale * t_l
+    return RayWork(scratch, work.pieces, work.cand, work.stack, work.nodes)
+
+
+@njit(**NJIT_INLINE)
+def light_transmittance(x, l_dir, l_max, li, scene, grid, maps, key, vertex, tol_t, scratch, work, track):
+    """An unbiased estimate of light li's transmittance from x along l_dir (up to l_max): (scratch, T_l).
+    With a shadow map (maps, records.ShadowMaps: a directional light), the map's T_map is a control variate:
+    T_l = T_map + (T - T_map) / p with probability p (CV_PROBABILITY), T being an exact shadow ray, and T_map
+    otherwise. (A ratio-tracked T in the correction was tried: its noise, divided by p, doubled the
+    variance.) Without a map (a point light), residual ratio tracking (kernels.tracking)."""
+    dim = np.int64(DIM_LIGHT + li * DIM_SPAN)
+    mi = maps.map_of[li]
+    if mi < 0:
+        return scratch, tracked_transmittance(x, l_dir, l_max, grid, scene.media, key, vertex, dim, track)
+    tau, _, _ = map_optical_depth(x, maps, mi)
+    t_map = math.exp(-tau)
+    if uniform(key.seed, key.pixel, key.path, vertex, dim - 1) >= CV_PROBABILITY:
+        return scratch, t_map
+    scratch, t_l = shadow_transmittance(x, l_dir, l_max, scene.media, tol_t, TAU_STOP, scratch, work.cand, work.stack)
+    return scratch, t_map + (t_l - t_map) / CV_PROBABILITY
+
+
+@njit(**NJIT_INLINE)
+def pick_medium(sigma, med, sigma_s, u):
+    """The medium whose phase function turns the path at a tracked vertex: m with probability
+    albedo_m sigma[m] / sigma_s."""
+    pick = u * sigma_s
+    acc = 0.0
+    chosen = 0
+    for m in range(n_media(med)):
+        part = med.albedo[m] * sigma[m]
+        if part > 0.0:
+            chosen = m
+            acc += part
+            if pick < acc:
+                break
+    return chosen
+
+
+@njit(**NJIT_INLINE)
+def exact_vertex(o, d, n_vert, weight, key, camera_segment, scene, tol_t, map_trust, has_env, max_order, work,
+                 light, out):
+    """One exact step of path_radiance: the segment from o along d traced exactly (the camera's for
+    n_vert 0), the environment seen through it, a forced collision in it (o moves there), the light
+    scattered there and the scattering mix. Returns (work, weight, the medium that turns the path, the
+    direction's three random numbers, whether the path ends)."""
+    seed, pixel, path = key.seed, key.pixel, key.path
+    if n_vert == 0:
+        rp, n_el, u_total = camera_segment.pieces, camera_segment.n_el, camera_segment.u_total
+        on_surface = False  # (the environment is not counted at vertex 0)
+    else:
+        work, n_el, u_total, on_surface = trace_segment(o, d, scene, tol_t, work)
+        rp = work.pieces
+    if n_vert > 0 and has_env and not on_surface:
+        transmittance = math.exp(-u_total)
+        r, g, b = background_radiance(scene.background, d)  # the environment, order n_vert, seen along d
+        out[0] += weight * transmittance * r
+        out[1] += weight * transmittance * g
+        out[2] += weight * transmittance * b
+    if n_vert == max_order or n_el == 0:
+        return work, weight, 0, 0.0, 0.0, 0.0, True
+    # a forced collision inside the segment: the flight's target depth is drawn in [0, U)
+    xi, u_cos, u_phi, u_lobe = sobol4(seed, pixel, path, n_vert)
+    escape = -math.expm1(-u_total)
+    weight *= escape
+    k, s, t = locate_depth(-math.log1p(-xi * escape), n_el, rp)
+    for c in range(3):
+        o[c] = o[c] + t * d[c]
+    if n_vert > 0:  # vertex 1 is single scattering: counted exactly by the deterministic renderer
+        light[:] = 0.0
+        work = next_event(o, d, k, s, scene, tol_t, map_trust, work, light)
+        for c in range(3):
+            out[c] += weight * light[c]
+    ratio, m = scattering_mix(k, s, rp, scene.media, uniform(seed, pixel, path, n_vert, DIM_MEDIUM))
+    return work, weight * ratio, m, u_cos, u_phi, u_lobe, False
+
+
+@njit(**NJIT_INLINE)
+def tracked_vertex(o, d, n_vert, weight, key, scene, grid, maps, tol_t, has_env, max_order, work, track, light, out):
+    """One tracked step of path_radiance (kernels.tracking): the next vertex by delta tracking along d (no
+    forced collision); a flight that gets through sees the environment (its probability is the
+    transmittance: the estimate is unbiased, and it costs no second walk) and ends the path. Otherwise o
+    moves to the vertex, and the light scattered there (tracked_next_event) and the scattering mix follow.
+    Returns what exact_vertex returns."""
+    seed, pixel, path = key.seed, key.pixel, key.path
+    scratch, t_hit, s_hit = surface_hit(o, d, scene.surfaces, tol_t, work)
+    work = RayWork(scratch, work.pieces, work.cand, work.stack, work.nodes)
+    t, sigma_t, sigma_s = delta_flight(o, d, t_hit, grid, scene.media, key, n_vert, track)
+    if t == np.inf:
+        if has_env and s_hit < 0:
+            r, g, b = background_radiance(scene.background, d)  # the environment, order n_vert, seen along d
+            out[0] += weight * r
+            out[1] += weight * g
+            out[2] += weight * b
+        return work, weight, 0, 0.0, 0.0, 0.0, True
+    if n_vert == max_order:
+        return work, weight, 0, 0.0, 0.0, 0.0, True
+    for c in range(3):
+        o[c] = o[c] + t * d[c]
+    for m in range(track.sigma.shape[0]):
+        track.at_vertex[m] = track.sigma[m]
+    light[:] = 0.0
+    work = tracked_next_event(o, d, sigma_t, scene, grid, maps, key, n_vert, tol_t, work, track, light)
+    for c in range(3):
+        out[c] += weight * light[c]
+    m = pick_medium(track.at_vertex, scene.media, sigma_s, uniform(seed, pixel, path, n_vert, DIM_MEDIUM))
+    _, u_cos, u_phi, u_lobe = sobol4(seed, pixel, path, n_vert)
+    return work, weight * sigma_s / sigma_t, m, u_cos, u_phi, u_lobe, False
+
+
+@njit(**NJIT)
+def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, grid, maps, work, track, vectors,
+                  out):
     """out[:3] = one path's estimate of the radiance the deterministic renderer leaves out (orders >= 2
     of the lights, orders >= 1 of the environment) along the camera ray o_cam + t d_cam.
     key: a records.PathKey; camera_segment: a records.CameraSegment, trace_segment of the camera ray,
-    traced once for all the paths that start on it; settings a records.PathSettings; vectors a
-    records.PathVectors. Returns work, grown if a
-    ray needed more room."""
+    traced once for all the paths that start on it; settings a records.PathSettings; grid a
+    records.MajorantGrid and track a records.TrackWork for the tracked flights (from vertex
+    settings.track_from on); vectors a records.PathVectors. Returns work, grown if a ray needed more room."""
     seed, pixel, path = key.seed, key.pixel, key.path
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
+    track_from = settings.track_from
     map_trust = quad.map_tolerance if quad.map_tolerance == np.inf else 0.0
     background = scene.background
     o, d, d_new, light = vectors.o, vectors.d, vectors.d_new, vectors.light
@@ -182,41 +330,28 @@ def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, work
         out[c] = 0.0
     has_env = np.any(background > 0.0)
     weight = 1.0
+    weight_1 = 1.0
     for n_vert in range(max_order + 1):
         if n_vert == max_order and not has_env:
             break
-        if n_vert == 0:
-            rp, n_el, u_total = camera_segment.pieces, camera_segment.n_el, camera_segment.u_total
-            on_surface = False  # (the environment is not counted at vertex 0)
+        if n_vert > 0 and n_vert + 1 >= track_from:
+            work, weight, m, u_cos, u_phi, u_lobe, done = tracked_vertex(
+                o, d, n_vert, weight, key, scene, grid, maps, tol_t, has_env, max_order, work, track, light, out)
+            if done:
+                break
         else:
-            work, n_el, u_total, on_surface = trace_segment(o, d, scene, tol_t, work)
-            rp = work.pieces
-        if n_vert > 0 and has_env and not on_surface:
-            transmittance = math.exp(-u_total)
-            r, g, b = background_radiance(background, d)  # the environment, order n_vert, seen along d
-            out[0] += weight * transmittance * r
-            out[1] += weight * transmittance * g
-            out[2] += weight * transmittance * b
-        if n_vert == max_order or n_el == 0:
-            break
-        # a forced collision inside the segment: the flight's target depth is drawn in [0, U)
-        xi, u_cos, u_phi, u_lobe = sobol4(seed, pixel, path, n_vert)
-        escape = -math.expm1(-u_total)
-        weight *= escape
-        k, s, t = locate_depth(-math.log1p(-xi * escape), n_el, rp)
-        for c in range(3):
-            o[c] = o[c] + t * d[c]
-        if n_vert > 0:  # vertex 1 is single scattering: counted exactly by the deterministic renderer
-            light[:] = 0.0
-            work = next_event(o, d, k, s, scene, tol_t, map_trust, work, light)
-            for c in range(3):
-                out[c] += weight * light[c]
-        ratio, m = scattering_mix(k, s, rp, scene.media, uniform(seed, pixel, path, n_vert, DIM_MEDIUM))
-        weight *= ratio
+            work, weight, m, u_cos, u_phi, u_lobe, done = exact_vertex(
+                o, d, n_vert, weight, key, camera_segment, scene, tol_t, map_trust, has_env, max_order, work,
+                light, out)
+            if done:
+                break
         if weight <= 0.0:
             break
+        if n_vert == 0:
+            weight_1 = weight  # the camera's forced collision: the same for every path of the camera ray
         if n_vert + 1 >= rr_order:
-            survive = min(1.0, weight)
+            # relative to vertex 1: an edge pixel's thin camera segment does not make its paths die early
+            survive = min(1.0, weight / weight_1)
             if uniform(seed, pixel, path, n_vert, DIM_ROULETTE) >= survive:
                 break
             weight /= survive
@@ -242,11 +377,12 @@ def _store_mean(acc, acc2, paths, i, j, mean, stderr):
 
 
 @njit(**NJIT)
-def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
+def render_paths(camera, scene, quad, settings, grid, maps, row0, p0, p1, mean, stderr):
     """Pixels p0 .. p1 - 1 (row by row from the start of row row0): per pixel, the mean of
     ``settings.paths`` path estimates into mean (H x W x 3), and its standard error into stderr. Path i
     starts on camera ray i mod spp of the deterministic renderer (camera.camera_ray), so the two add up
-    ray by ray. camera, scene, quad: the records of single.render_pixels. nogil, with its own work
+    ray by ray. camera, scene, quad: the records of single.render_pixels; grid: the records.MajorantGrid of
+    the tracked flights (from vertex settings.track_from on; any grid when none is tracked). nogil, with its own work
     arrays: cloudmeta.renderer.multiple runs bands of rows on several threads. The camera ray's own segment is
     traced once per ray, into work arrays of its own, for all the paths that start on it (ray by ray:
     paths r, r + spp, r + 2 spp, ...)."""
@@ -257,8 +393,12 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
     camera_own = alloc_ray_work(scene)
     work = borrow(own)
     camera_work = borrow(camera_own)
+    track_own = alloc_track_work(n_media(scene.media))
+    track = borrow(track_own)
     scene = borrow(scene)
     quad = borrow(quad)
+    grid = borrow(grid)
+    maps = borrow(maps)
     vectors = PathVectors(np.empty(3), np.empty(3), np.empty(3), np.empty(3))
     d = np.empty(3)
     est = np.empty(3)
@@ -279,8 +419,9 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
                 continue
             segment = CameraSegment(camera_work.pieces, n_el, u_total)
             for path in range(r, paths, spp):
-                work = path_radiance(camera.position, d, PathKey(camera.seed, i * width + j, path), segment, scene, quad,
-                                     settings, work, vectors, est)
+                key = PathKey(camera.seed, i * width + j, path)
+                work = path_radiance(camera.position, d, key, segment, scene, quad, settings, grid, maps, work, track,
+                                     vectors, est)
                 for c in range(3):
                     acc[c] += est[c]
                     acc2[c] += est[c] * est[c]
@@ -289,6 +430,7 @@ def render_paths(camera, scene, quad, settings, row0, p0, p1, mean, stderr):
         _store_mean(acc, acc2, paths, i, j, mean, stderr)
     release(own)
     release(camera_own)
+    release_track(track_own)
 
 
 @njit(**NJIT)

@@ -129,5 +129,19 @@ PathVectors = namedtuple("PathVectors", ["o", "d", "d_new", "light"])
 CameraSegment = namedtuple("CameraSegment", ["pieces", "n_el", "u_total"])
 
 #: the multiple-scattering paths (kernels.multiple): the highest scattering order, the vertex from which
-#: Russian roulette plays, and the paths per pixel
-PathSettings = namedtuple("PathSettings", ["max_order", "rr_order", "paths"])
+#: Russian roulette plays, the paths per pixel, and the first vertex reached by a tracked flight
+#: (kernels.tracking; a vertex beyond max_order: every flight exact)
+PathSettings = namedtuple("PathSettings", ["max_order", "rr_order", "paths", "track_from"])
+
+#: the majorant grid of the tracked flights (kernels.tracking, docs/model.md §10.1): a box of cubic cells,
+#: origin (3,), cell size, dims (3,) cells per axis (cell c = i + nx (j + ny k)); per cell sigma_max and
+#: sigma_min, an upper and a lower bound of sigma_t summed over the media at every point of the cell; start
+#: (cells + 1,) and items: the balls of every medium (in increasing index) whose padded support box meets
+#: the cell; ball_medium (N,) the medium of each ball. Outside the box sigma_t is 0.
+MajorantGrid = namedtuple("MajorantGrid", ["origin", "size", "dims", "sigma_max", "sigma_min", "start", "items",
+                                           "ball_medium"])
+
+#: one thread's work for tracked flights (kernels.tracking): sigma (M,) each medium's sigma_t at the last
+#: point evaluated, at_vertex (M,) at the path's vertex; x (3,) the point; the grid walk's cell and step
+#: (3,) int64, t_next and t_delta (3,)
+TrackWork = namedtuple("TrackWork", ["sigma", "at_vertex", "x", "cell", "step", "t_next", "t_delta"])

@@ -26,10 +26,9 @@ import numpy as np
 
 from ..errors import SceneError
 from ..kernels.multiple import render_paths
-from ..kernels.records import PathSettings
 from ..kernels.single import render_pixels
-from .multiple import RR_ORDER
 from .pack import background_along, pixel_directions, single_octave
+from .tracking import path_settings, paths_grid, paths_maps
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel
 ERROR_PIXELS = 128
@@ -83,7 +82,9 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     rows, cols = r_lo + chosen // tw, c_lo + chosen % tw
     camera, records, quad = packed.camera, packed.records, packed.quadrature
     single = records._replace(octaves=single_octave(), ambient=np.zeros(3))
-    settings = PathSettings(max_order=int(scene.render.max_order), rr_order=RR_ORDER, paths=int(paths))
+    settings = path_settings(scene, paths, scene.render.max_order)
+    grid = paths_grid(scene, records.media, settings)
+    maps = paths_maps(scene, packed, settings)
     h, w = scene.image.height, scene.image.width
     exact = np.zeros((h, w, 4))
     nearest = np.full((h, w), np.inf)
@@ -94,7 +95,7 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     def pixel(k):  # each pixel writes its own entries; every random number is keyed by the pixel
         i, j = int(rows[k]), int(cols[k])
         render_pixels(camera, single, quad, np.int64(i), np.int64(j), np.int64(j + 1), exact, nearest, counts)
-        render_paths(camera, single, quad, settings, np.int64(i), np.int64(j), np.int64(j + 1), mean, stderr)
+        render_paths(camera, single, quad, settings, grid, maps, np.int64(i), np.int64(j), np.int64(j + 1), mean, stderr)
 
     with ThreadPoolExecutor(numba.get_num_threads()) as pool:
         list(pool.map(pixel, range(chosen.size)))

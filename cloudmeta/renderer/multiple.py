@@ -1,13 +1,14 @@
 """Multiple scattering (``render: {scattering: multiple}``): the Monte Carlo part of the image.
 
 Order 1 of every light stays the deterministic single-scattering renderer's (exact shadows, the
-quadrature of cloudmeta.renderer.single); ``render_multiple`` adds, by path tracing on the exact optical depth
-(cloudmeta.kernels.multiple), the orders 2 .. ``max_order`` of the lights and the orders 1 .. ``max_order``
+quadrature of cloudmeta.renderer.single); ``render_multiple`` adds, by path tracing (cloudmeta.kernels.multiple:
+exact flights first, tracked ones from ``render.track_from`` on, renderer.tracking), the orders 2 .. ``max_order`` of the lights and the orders 1 .. ``max_order``
 of the environment, the scene's uniform ``background``. It returns the per-pixel mean and its standard
 error, so every multiple-scattering image comes with its own error estimate.
 
 Both estimators read one packing of the scene (cloudmeta.renderer.pack.pack_scene); with ``shadows: map`` the
-paths' next-event shadow rays read the same maps as the single-scattering renderer.
+paths' next-event shadow rays read the same maps as the single-scattering renderer (at exact vertices as
+they are, at tracked ones as a control variate).
 
 ``ambient`` is refused in multiple mode: the background already lights the medium at every order, and
 an ambient term on top would count the sky twice.
@@ -18,12 +19,9 @@ import numpy as np
 
 from ..errors import SceneError
 from ..kernels.multiple import render_paths
-from ..kernels.records import PathSettings
 from .bands import run_bands, tile_window
 from .pack import pack_scene
-
-#: Russian roulette from this vertex on (the first vertices carry most of the light: keep them all)
-RR_ORDER = 4
+from .tracking import path_settings, paths_grid, paths_maps
 
 
 def check_multiple(scene):
@@ -48,13 +46,15 @@ def render_multiple(scene, paths=None, max_order=None, seed=0, progress=False, r
     window = tile_window(rows, scene.image.height, "rows"), tile_window(columns, scene.image.width, "columns")
     packed = pack_scene(scene, seed) if packed is None else packed
     camera, records, quad = packed.camera, packed.records, packed.quadrature
-    settings = PathSettings(max_order=int(max_order), rr_order=RR_ORDER, paths=int(paths))
+    settings = path_settings(scene, paths, max_order)
+    grid = paths_grid(scene, records.media, settings)
+    maps = paths_maps(scene, packed, settings)
     w, h = scene.image.width, scene.image.height
     mean = np.zeros((h, w, 3))
     stderr = np.zeros((h, w, 3))
     # bands write their own rows with their own work arrays, and every random number is keyed by the
     # pixel: the result depends neither on the threads nor on the tile
-    run_bands(lambda row0, p0, p1: render_paths(camera, records, quad, settings, row0, p0, p1, mean, stderr),
-              window, w, progress)
+    run_bands(lambda row0, p0, p1: render_paths(camera, records, quad, settings, grid, maps, row0, p0, p1, mean,
+                                                stderr), window, w, progress)
     (r_lo, r_hi), (c_lo, c_hi) = window
     return mean[r_lo:r_hi, c_lo:c_hi], stderr[r_lo:r_hi, c_lo:c_hi]

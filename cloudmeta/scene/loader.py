@@ -151,6 +151,7 @@ def _render(top, overrides=None):
         octaves=_octaves(n),
         max_order=n.integer("max_order", 64, **_int_range(1, lim.MAX_ORDER)),
         ms_spp=n.integer("ms_spp", 16, **_int_range(1, lim.MAX_SPP)),
+        track_from=n.integer("track_from", 2, **_int_range(2, lim.MAX_ORDER + 1)),
         error=n.number("error", None, check=lambda v: lim.MIN_ERROR_TARGET <= v <= 0.5,
                        expect=f"a relative RMSE from {lim.MIN_ERROR_TARGET:g} to 0.5 (docs/error_estimate.md)"))
 

@@ -81,6 +81,7 @@ class RenderSettings:
     octaves: tuple = OCTAVES    #: approximate, octaves: (count, a, b, c)
     max_order: int = 64         #: multiple: the highest scattering order
     ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
+    track_from: int = 2         #: multiple: the first vertex reached by a tracked flight (docs/model.md §10.1)
     error: float | None = None  #: a target relative RMSE: the quadrature is refined until the estimate meets it
 
 
