@@ -137,9 +137,10 @@ PathSettings = namedtuple("PathSettings", ["max_order", "rr_order", "paths", "tr
 #: origin (3,), cell size, dims (3,) cells per axis (cell c = i + nx (j + ny k)); per cell sigma_max and
 #: sigma_min, an upper and a lower bound of sigma_t summed over the media at every point of the cell; start
 #: (cells + 1,) and items: the balls of every medium (in increasing index) whose padded support box meets
-#: the cell; ball_medium (N,) the medium of each ball. Outside the box sigma_t is 0.
+#: the cell; ball_medium (N,) the medium of each ball; inv_r2 (N,) 1 / R^2 of a sphere, 0 for an ellipsoid (a
+#: sphere's u skips the frame). Outside the box sigma_t is 0.
 MajorantGrid = namedtuple("MajorantGrid", ["origin", "size", "dims", "sigma_max", "sigma_min", "start", "items",
-                                           "ball_medium"])
+                                           "ball_medium", "inv_r2"])
 
 #: one thread's work for tracked flights (kernels.tracking): sigma (M,) each medium's sigma_t at the last
 #: point evaluated, at_vertex (M,) at the path's vertex; x (3,) the point; the grid walk's cell and step

@@ -44,7 +44,7 @@ def no_grid(med) -> MajorantGrid:
     """A grid with one empty cell (every flight exact): the same types as majorant_grid's."""
     return MajorantGrid(origin=np.zeros(3), size=1.0, dims=np.ones(3, np.int64), sigma_max=np.zeros(1),
                         sigma_min=np.zeros(1), start=np.zeros(2, np.int64), items=np.zeros(0, np.int64),
-                        ball_medium=np.zeros(len(med.weights), np.int64))
+                        ball_medium=np.zeros(len(med.weights), np.int64), inv_r2=np.zeros(len(med.weights)))
 
 
 def majorant_grid(scene, med, cells=MAJORANT_CELLS) -> MajorantGrid:
@@ -73,8 +73,10 @@ def majorant_grid(scene, med, cells=MAJORANT_CELLS) -> MajorantGrid:
     sigma_max = np.zeros(n_cells)
     sigma_min = np.zeros(n_cells)
     cell_bounds(med, ball_medium, inv_radii, lo, size, dims, pad, start, items, sigma_max, sigma_min)
+    sphere = radii.min(axis=1) == radii.max(axis=1)
+    inv_r2 = np.ascontiguousarray(np.where(sphere, inv_radii[:, 0] ** 2, 0.0))
     return MajorantGrid(origin=np.ascontiguousarray(lo, dtype=np.float64), size=size, dims=dims, sigma_max=sigma_max,
-                        sigma_min=sigma_min, start=start, items=items, ball_medium=ball_medium)
+                        sigma_min=sigma_min, start=start, items=items, ball_medium=ball_medium, inv_r2=inv_r2)
 
 
 def paths_grid(scene, med, settings) -> MajorantGrid:
