@@ -209,7 +209,8 @@ def light_transmittance(x, l_dir, l_max, li, scene, grid, maps, key, vertex, tol
     With a shadow map (maps, records.ShadowMaps: a directional light), the map's T_map is a control variate:
     T_l = T_map + (T - T_map) / p with probability p, T being an exact shadow ray, and T_map otherwise;
     p = CV_PROBABILITY + the spread of the four texels' transmittances (at most 1). (A ratio-tracked T in the
-    correction was tried: its noise, divided by p, doubled the variance.) Without a map (a point light), residual ratio tracking (kernels.tracking)."""
+    correction was tried: its noise, divided by p, doubled the variance.) Without a map (a point light),
+    residual ratio tracking (kernels.tracking)."""
     dim = np.int64(DIM_LIGHT + li * DIM_SPAN)
     mi = maps.map_of[li]
     if mi < 0:

@@ -95,7 +95,8 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     def pixel(k):  # each pixel writes its own entries; every random number is keyed by the pixel
         i, j = int(rows[k]), int(cols[k])
         render_pixels(camera, single, quad, np.int64(i), np.int64(j), np.int64(j + 1), exact, nearest, counts)
-        render_paths(camera, single, quad, settings, grid, maps, np.int64(i), np.int64(j), np.int64(j + 1), mean, stderr)
+        render_paths(camera, single, quad, settings, grid, maps, np.int64(i), np.int64(j), np.int64(j + 1), mean,
+                     stderr)
 
     with ThreadPoolExecutor(numba.get_num_threads()) as pool:
         list(pool.map(pixel, range(chosen.size)))

@@ -1,9 +1,10 @@
 """Multiple scattering (``render: {scattering: multiple}``): the Monte Carlo part of the image.
 
 Order 1 of every light stays the deterministic single-scattering renderer's (exact shadows, the
-quadrature of cloudmeta.renderer.single); ``render_multiple`` adds, by path tracing (cloudmeta.kernels.multiple:
-exact flights first, tracked ones from ``render.track_from`` on, renderer.tracking), the orders 2 .. ``max_order`` of the lights and the orders 1 .. ``max_order``
-of the environment, the scene's uniform ``background``. It returns the per-pixel mean and its standard
+quadrature of cloudmeta.renderer.single); ``render_multiple`` adds, by path tracing
+(cloudmeta.kernels.multiple: exact flights first, tracked ones from ``render.track_from`` on,
+renderer.tracking), the orders 2 .. ``max_order`` of the lights and the orders 1 .. ``max_order`` of the
+environment, the scene's uniform ``background``. It returns the per-pixel mean and its standard
 error, so every multiple-scattering image comes with its own error estimate.
 
 Both estimators read one packing of the scene (cloudmeta.renderer.pack.pack_scene); with ``shadows: map`` the
