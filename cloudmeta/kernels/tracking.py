@@ -2,7 +2,7 @@
 majorant grid whose bounds are exact (docs/model.md §10.1).
 
 Beyond the first vertices, inverting the exact optical depth and delta tracking sample the same free-flight
-distribution, and the transmittance a vertex needs (towards a light, or out to the environment) has
+distribution, and the transmittance a vertex needs towards a light has
 unbiased estimators that cost a few point evaluations of the field instead of a whole exact sweep. The
 grid (records.MajorantGrid, built by ``cell_bounds``) holds per cell an upper bound sigma_max and a lower
 bound sigma_min of sigma_t (summed over the media) at every point of the cell, and the balls that can reach
@@ -33,10 +33,9 @@ from .metaball import ball_field, falloff
 from .records import TrackWork
 from .sampling import uniform
 
-#: the first random dimension of a delta-tracked flight; of the environment's transmittance; of the
-#: transmittance towards light li (DIM_LIGHT + li * DIM_SPAN). Far apart: a walk draws 2 per tentative point
+#: the first random dimension of a delta-tracked flight; of the transmittance towards light li
+#: (DIM_LIGHT + li * DIM_SPAN). Far apart: a walk draws 2 per tentative point
 DIM_FLIGHT = 1 << 20
-DIM_ENVIRONMENT = 2 << 20
 DIM_LIGHT = 3 << 20
 DIM_SPAN = 1 << 20
 #: a transmittance estimate below this plays Russian roulette (survives with probability 1/2, doubled)
@@ -281,7 +280,7 @@ def delta_flight(o, d, t_max, grid, med, key, vertex, w):
 def tracked_transmittance(o, d, t_max, grid, med, key, vertex, dim0, w):
     """An unbiased estimate of e^-tau along o + t d, t in [0, t_max]: residual ratio tracking, with the cells'
     sigma_min as the control (its depth is exact) and sigma_max - sigma_min as the residual's majorant;
-    Russian roulette below ROULETTE_BELOW. dim0: the first random dimension (DIM_ENVIRONMENT, DIM_LIGHT ...)."""
+    Russian roulette below ROULETTE_BELOW. dim0: the first random dimension (DIM_LIGHT ...)."""
     t, t_end = walk_start(o, d, t_max, grid, w)
     dim = dim0
     ratio = 1.0

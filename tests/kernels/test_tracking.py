@@ -11,7 +11,7 @@ from numba import njit
 from cloudmeta.kernels.borrow import borrow
 from cloudmeta.kernels.grid import cell_index
 from cloudmeta.kernels.records import PathKey
-from cloudmeta.kernels.tracking import (DIM_ENVIRONMENT, alloc_track_work, delta_flight, point_sigma,
+from cloudmeta.kernels.tracking import (DIM_LIGHT, alloc_track_work, delta_flight, point_sigma,
                                         tracked_transmittance, walk_advance, walk_cell, walk_start)
 from cloudmeta.renderer.pack import pack_media
 from cloudmeta.renderer.tracking import majorant_grid
@@ -155,7 +155,7 @@ def _flights(o, d, grid, med, n, mode):
         if mode == 0:
             out[p], _, _ = delta_flight(o, d, np.inf, grid, med, key, np.int64(2), w)
         else:
-            out[p] = tracked_transmittance(o, d, np.inf, grid, med, key, np.int64(2), np.int64(DIM_ENVIRONMENT), w)
+            out[p] = tracked_transmittance(o, d, np.inf, grid, med, key, np.int64(2), np.int64(DIM_LIGHT), w)
     w_own.x[0] += 0.0
     return out
 
