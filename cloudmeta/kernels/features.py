@@ -1,4 +1,5 @@
-"""What a scene may lack: opaque surfaces and shadow maps, compiled only for the scenes that have them.
+"""What a scene may lack: opaque surfaces, shadow maps and the approximate mode's radiance grid, compiled only
+for the scenes that have them.
 
 cloudmeta.renderer.pack.scene_records gives a scene with neither surfaces nor shadow maps None in their places
 (``SceneRecords.surfaces`` and ``Lights.maps``). The helpers here take that record and pick their
@@ -6,6 +7,9 @@ implementation by its type when numba compiles the caller (``@overload``): with 
 the trivial answer (no hit, not blocked, no map), so none of the surface or shadow-map code is compiled
 for such a scene. With the records they call the real code. A scene has either both records or neither:
 each kernel is compiled in at most two versions (with and without), not four.
+
+The radiance grid (``SceneRecords.radiance``, the approximate mode's method grid) is None in every other
+scene: ``grid_light`` then compiles to black, and none of kernels.fluence is compiled.
 
 Each helper is also a plain Python function with the same meaning, for calls from Python.
 """
@@ -15,6 +19,7 @@ from numba.extending import overload
 
 from .config import OVERLOAD
 from .bvh import misses_root_boxes
+from .fluence import grid_scattered
 from .shadowmap import map_optical_depth
 from .surfaces import first_surface_hit, n_surfaces, surfaces_block
 
@@ -108,3 +113,30 @@ def _map_depth(x, maps, mi):
     if _absent(maps):
         return lambda x, maps, mi: (0.0, 0.0, 0.0)  # never asked: light_map gives -1 without maps
     return lambda x, maps, mi: map_optical_depth(x, maps, mi)
+
+
+def grid_light(radiance, x, d, m):
+    """(r, g, b): the scattered light medium m sends along -d at x per unit sigma_s, from the radiance grid
+    (kernels.fluence.grid_scattered); black without one (None)."""
+    if radiance is None:
+        return 0.0, 0.0, 0.0
+    return grid_scattered(radiance, x, d, m)
+
+
+@overload(grid_light, **OVERLOAD)
+def _grid_light(radiance, x, d, m):
+    if _absent(radiance):
+        return lambda radiance, x, d, m: (0.0, 0.0, 0.0)
+    return lambda radiance, x, d, m: grid_scattered(radiance, x, d, m)
+
+
+def has_grid(radiance):
+    """Whether the scene has a radiance grid (a compile-time constant in the kernels)."""
+    return radiance is not None
+
+
+@overload(has_grid, **OVERLOAD)
+def _has_grid(radiance):
+    if _absent(radiance):
+        return lambda radiance: False
+    return lambda radiance: True

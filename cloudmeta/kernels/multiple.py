@@ -57,7 +57,7 @@ from .raywork import alloc_ray_work, elementary_intervals
 from .borrow import borrow, hold_grown, release
 from .records import CameraSegment, PathKey, PathVectors, RayWork
 from .sampling import free_flight, sample_phase_cos, sobol4, turn, uniform
-from .tracking import (DIM_LIGHT, DIM_SPAN, alloc_track_work, delta_flight, release_track,
+from .tracking import (DIM_LIGHT, DIM_SPAN, alloc_track_work, delta_flight, pick_medium, release_track,
                        tracked_transmittance)
 
 #: the independent random dimensions of one vertex (the stream's last key); the flight, the phase's lobe
@@ -223,23 +223,6 @@ def light_transmittance(x, l_dir, l_max, li, scene, grid, maps, key, vertex, tol
         return scratch, t_map
     scratch, t_l = shadow_transmittance(x, l_dir, l_max, scene.media, tol_t, TAU_STOP, scratch, work.cand, work.stack)
     return scratch, t_map + (t_l - t_map) / p
-
-
-@njit(**NJIT_INLINE)
-def pick_medium(sigma, med, sigma_s, u):
-    """The medium whose phase function turns the path at a tracked vertex: m with probability
-    albedo_m sigma[m] / sigma_s."""
-    pick = u * sigma_s
-    acc = 0.0
-    chosen = 0
-    for m in range(n_media(med)):
-        part = med.albedo[m] * sigma[m]
-        if part > 0.0:
-            chosen = m
-            acc += part
-            if pick < acc:
-                break
-    return chosen
 
 
 @njit(**NJIT_INLINE)

@@ -61,8 +61,24 @@ Lights = namedtuple("Lights", ["kind", "vec", "rgb", "maps"])
 #: then compile without the surface code, kernels.features), Lights, the background (K, 3) (one row: uniform; more:
 #: a sky over elevation, kernels.camera.background_radiance) and the ambient radiance (3,)
 #: octaves (N, 3): rows (a^i, b^i, c^i) of the approximate mode's octaves (docs/approximate.md); the single
-#: row (1, 1, 1) is single scattering
-SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient", "octaves"])
+#: row (1, 1, 1) is single scattering; radiance: the approximate mode's RadianceGrid (method grid), else None
+#: (and then its gather is not compiled, kernels.features)
+SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient", "octaves",
+                                           "radiance"])
+
+#: the scattered radiance field of the approximate mode's grid method (kernels.fluence): a box of cubic
+#: cells, origin (3,), cell size, dims (3,) (cell c = i + nx (j + ny k)); coef (cells, 3, K) per cell and
+#: colour the field's moments on the real spherical harmonics of degree <= 1 (K = 4) or 2 (K = 9), as
+#: values at the cell's centre; moments (M, 3) per medium its phase function's Funk-Hecke factors
+#: lambda_0..2 (1, g, g^2 for HG)
+RadianceGrid = namedtuple("RadianceGrid", ["origin", "size", "dims", "coef", "moments"])
+
+#: where the grid method's photons come from (kernels.fluence.emit): per source kind (S,) (kinds.LIGHTS, or
+#: fluence.ENVIRONMENT), vec (S, 3) the direction towards a directional light or a point light's position,
+#: rgb (S, 3) the power of one photon (times the environment's radiance along it), first (S + 1,) the
+#: photons' numbering per source; centre (3,) and radius of the sphere the parallel photons cross; the
+#: background table (K, 3) (kernels.camera.background_radiance)
+PhotonSources = namedtuple("PhotonSources", ["kind", "vec", "rgb", "first", "centre", "radius", "background"])
 
 #: the in-scattering quadrature (cloudmeta.renderer.pack.quadrature): the step rule, 7 Gauss and 15 Kronrod nodes
 #: on [0, 1] with their Lagrange bases at a fine Gauss rule (fine_y, fine_w); where the Gauss nodes and

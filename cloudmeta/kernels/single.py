@@ -66,7 +66,7 @@ from .bernstein import bernstein_cumulative, bernstein_eval
 from .borrow import borrow, hold_grown, release
 from .bvh import misses_root_boxes
 from .camera import background_radiance, background_sample, camera_ray
-from .features import misses_surfaces, surface_hit
+from .features import grid_light, has_grid, misses_surfaces, surface_hit
 from .lighting import COUNT_NODES, angular_cuts, light_at_node
 from .media import collect_media
 from .optics import phase
@@ -186,6 +186,11 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
                 j_val[c, col] += ratio * ph * light_buf[li, 1 + c]
         for c in range(3):
             j_val[c, col] += ratio * scene.ambient[c]
+        # the approximate mode's grid: the orders a node's exact T_l does not count (black in other scenes)
+        g_r, g_g, g_b = grid_light(scene.radiance, pos, d, m)
+        j_val[0, col] += ratio * g_r
+        j_val[1, col] += ratio * g_g
+        j_val[2, col] += ratio * g_b
     return scratch, (k, s, u)
 
 
@@ -329,21 +334,22 @@ def segment_end(rp, k_a, n_el):
 
 @njit(**NJIT_INLINE)
 def scatters_light(scene):
-    """Whether any medium scatters (albedo > 0) and there is light to scatter (lights or ambient)."""
+    """Whether any medium scatters (albedo > 0) and there is light to scatter (lights, ambient or a radiance
+    grid)."""
     ambient = scene.ambient
     has_ambient = ambient[0] > 0.0 or ambient[1] > 0.0 or ambient[2] > 0.0
     scatters = False
     for m in range(scene.media.albedo.shape[0]):
         scatters = scatters or scene.media.albedo[m] > 0.0
-    return (scene.lights.kind.shape[0] > 0 or has_ambient) and scatters
+    return (scene.lights.kind.shape[0] > 0 or has_ambient or has_grid(scene.radiance)) and scatters
 
 
 @njit(**NJIT_INLINE)
 def constant_source(scene):
-    """Whether J is the same at every point of every ray: no lights (ambient light only) and one albedo
-    shared by all media, so that J = albedo * ambient wherever there is medium (sum over media of
+    """Whether J is the same at every point of every ray: no lights and no radiance grid (ambient light only),
+    and one albedo shared by all media, so that J = albedo * ambient wherever there is medium (sum over media of
     albedo sigma_t,m / sigma_t)."""
-    if scene.lights.kind.shape[0] > 0:
+    if scene.lights.kind.shape[0] > 0 or has_grid(scene.radiance):
         return False
     albedo = scene.media.albedo
     for m in range(1, albedo.shape[0]):

@@ -242,6 +242,23 @@ def _exponential(key, vertex, dim):
     return -math.log1p(-uniform(key.seed, key.pixel, key.path, vertex, dim))
 
 
+@njit(**NJIT_INLINE)
+def pick_medium(sigma, med, sigma_s, u):
+    """The medium whose phase function turns the path at a tracked vertex: m with probability
+    albedo_m sigma[m] / sigma_s."""
+    pick = u * sigma_s
+    acc = 0.0
+    chosen = 0
+    for m in range(med.start.shape[0] - 1):
+        part = med.albedo[m] * sigma[m]
+        if part > 0.0:
+            chosen = m
+            acc += part
+            if pick < acc:
+                break
+    return chosen
+
+
 # --- the estimators ------------------------------------------------------------------------------------------
 
 @njit(**NJIT)

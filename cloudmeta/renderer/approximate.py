@@ -37,6 +37,9 @@ ERROR_PATHS = 64
 
 def check_approximate(scene):
     """Refuse what the approximate mode cannot take (one line naming the file and the key)."""
+    if scene.render.method == "grid" and scene.surfaces:
+        raise SceneError(scene.path, "render.method", "grid does not take opaque surfaces (its light paths do not "
+                                                      "meet them); use method: octaves or scattering: multiple")
     if scene.ambient is not None:
         raise SceneError(scene.path, "ambient", "not allowed with render.scattering: approximate (the background "
                                                 "lights the medium as its own ambient term; ambient would count "
@@ -81,7 +84,7 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     tw = c_hi - c_lo
     rows, cols = r_lo + chosen // tw, c_lo + chosen % tw
     camera, records, quad = packed.camera, packed.records, packed.quadrature
-    single = records._replace(octaves=single_octave(), ambient=np.zeros(3))
+    single = records._replace(octaves=single_octave(), ambient=np.zeros(3), radiance=None)
     settings = path_settings(scene, paths, scene.render.max_order)
     grid = paths_grid(scene, records.media, settings)
     maps = paths_maps(scene, packed, settings)

@@ -149,6 +149,7 @@ def _render(top, overrides=None):
         scattering=n.choice("scattering", SCATTERING_MODES, "single"),
         method=n.choice("method", APPROXIMATE_METHODS, "octaves"),
         octaves=_octaves(n),
+        grid=_grid(n),
         max_order=n.integer("max_order", 64, **_int_range(1, lim.MAX_ORDER)),
         ms_spp=n.integer("ms_spp", 16, **_int_range(1, lim.MAX_SPP)),
         track_from=n.integer("track_from", 2, **_int_range(2, lim.MAX_ORDER + 1)),
@@ -163,6 +164,16 @@ def _octaves(render):
     fraction = dict(check=lambda v: 0 < v <= 1, expect="a number in (0, 1]")
     return (n.integer("count", count, **_int_range(1, lim.MAX_OCTAVES)), n.number("a", a, **fraction),
             n.number("b", b, **fraction), n.number("c", c, **fraction))
+
+
+def _grid(render):
+    """render.grid: {cells, photons} (docs/approximate.md), None where absent (the quality preset's); a key left
+    out is None too and takes the preset's value."""
+    if "grid" not in render.data:
+        return None
+    n = render.node("grid", ("cells", "photons"), {})
+    return (n.integer("cells", None, **_int_range(2, lim.MAX_GRID_CELLS)),
+            n.integer("photons", None, **_int_range(1, lim.MAX_PHOTONS)))
 
 
 EXPOSURE = dict(check=lambda v: abs(v) <= lim.MAX_EXPOSURE,

@@ -31,7 +31,7 @@ HYBRID_SHARE = 0.25
 #: render.scattering: the estimators (renderer.frame.ESTIMATORS)
 SCATTERING_MODES = ("single", "multiple", "approximate")
 #: render.method of the approximate mode (renderer.approximate)
-APPROXIMATE_METHODS = ("octaves",)
+APPROXIMATE_METHODS = ("octaves", "grid")
 #: render.octaves when not given: (count, a, b, c), fitted by validation/accuracy/approximate.py on scenes
 #: that are not the ones its error is reported on (docs/approximate.md)
 OCTAVES = (4, 0.5, 0.6, 0.45)

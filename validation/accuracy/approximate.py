@@ -16,6 +16,7 @@ the approximation approximates). Printed for single scattering, the octaves and 
 
     python -m validation.accuracy.approximate references [--paths 512] [--size 64]
     python -m validation.accuracy.approximate fit
+    python -m validation.accuracy.approximate tune [--paths 4096]   (the grid method's cells and photons)
     python -m validation.accuracy.approximate report [--no-csv]
     python -m validation.accuracy.approximate timing --size 512 [--repeats 3]
     python -m validation.accuracy.approximate figure --size 128 --paths 256   (docs/approximate_cumulus.png)
@@ -43,12 +44,12 @@ REPORT = {"cumulus_front": SUITE / "cumulus_front.yaml", "cumulus_back": SUITE /
 FOLDER = RESULTS / "approximate"
 
 
-def scene_of(path, size, mode="single", octaves=None):
+def scene_of(path, size, mode="single", octaves=None, method="octaves", grid=None):
     s = cm.load_scene(path)
     h = max(1, round(size * s.image.height / s.image.width))
     s = cm.load_scene(path, width=size, height=h)
     s = replace(s, ambient=None)
-    settings = dict(scattering=mode)
+    settings = dict(scattering=mode, method=method, grid=grid)
     if octaves is not None:
         settings["octaves"] = tuple(octaves)
     return with_settings(s, **settings)
@@ -94,14 +95,43 @@ def approx_image(path, size, octaves=None):
 def references(args):
     for name, path in {**FIT, **REPORT}.items():
         u, se, bt, sec = reference(name, path, args.size, args.paths)
-        # a preview: 16 paths per pixel (another seed than the reference's), denoised (renderer.denoise)
-        t0 = time.perf_counter()
-        result = render_frame(with_settings(multi, ms_spp=16), progress=False, seed=1, denoise=True)
-        took = time.perf_counter() - t0
-        err = rel_error(result.image[..., :3].astype(np.float64), u, se, bt)
-        shots.append((result.image, f"multiple, 16 paths, denoised\n{took:.1f} s, error {err:.2f}"))
         noise = np.sqrt(np.mean(se ** 2)) / float(np.mean(u - bt))
         print(f"{name:16s} reference {sec:7.1f} s, its noise {noise:.2e} of the scattered light", flush=True)
+
+
+def grid_error(name, path, size, paths, grid=None, seeds=(0, 1)):
+    """The grid method on one scene at ``default``: (error of the first seed's image, the images' own noise
+    (the RMS difference of two seeds over sqrt 2, relative to the scattered light), seconds of the first)."""
+    u, se, bt, _ = reference(name, path, size, paths)
+    s = with_settings(scene_of(path, size, "approximate", method="grid", grid=grid), quality="default")
+    images, seconds = [], []
+    for seed in seeds:
+        t0 = time.perf_counter()
+        images.append(cm.render(s, progress=False, seed=seed)[..., :3].astype(np.float64))
+        seconds.append(time.perf_counter() - t0)
+    scattered = float(np.mean(u - bt))
+    noise = np.sqrt(np.mean((images[0] - images[1]) ** 2) / 2) / scattered if len(images) > 1 else float("nan")
+    return rel_error(images[0], u, se, bt), noise, seconds[0]
+
+
+def tune(args):
+    """The grid's resolution and photons on the FIT scenes alone: error and noise per setting."""
+    settings = [(c, p) for c in (24, 32, 40, 48) for p in (1 << 21, 1 << 22, 1 << 23)]
+    rows = []
+    for cells, photons in settings:
+        errs = []
+        for name, path in FIT.items():
+            err, noise, sec = grid_error(name, path, args.size, args.paths, (cells, photons))
+            errs.append(err)
+            rows.append(dict(cells=cells, photons=photons, scene=name, error=f"{err:.4f}", noise=f"{noise:.4f}",
+                             seconds=f"{sec:.1f}"))
+            print(f"cells {cells:3d} photons {photons:8d} {name:16s} error {err:.4f} noise {noise:.4f} "
+                  f"({sec:.1f} s)", flush=True)
+        print(f"cells {cells:3d} photons {photons:8d}: worst {max(errs):.4f}, rms {np.sqrt(np.mean(np.square(errs))):.4f}",
+              flush=True)
+    if not args.no_csv:
+        write_csv(RESULTS / "approximate_grid_tuning.csv", rows)
+    return {"rows": rows}
 
 
 def fit(args):
@@ -133,17 +163,27 @@ def report(args):
         t_approx = time.perf_counter() - t0
         e_single = rel_error(single[..., :3].astype(np.float64), u, se, bt)
         e_approx = rel_error(approx[..., :3].astype(np.float64), u, se, bt)
-        packed = pack_scene(s, 0)
+        window = ((0, s.image.height), (0, s.image.width))
+        est = approximation_error(s, approx.astype(np.float64), pack_scene(s, 0), window)
+        sg = with_settings(scene_of(path, args.size, "approximate", method="grid"), quality="default")
+        e_grid, noise_grid, t_grid = grid_error(name, path, args.size, args.paths)
+        grid_img = cm.render(sg, progress=False)
         t0 = time.perf_counter()
-        est = approximation_error(s, approx.astype(np.float64), packed, ((0, s.image.height), (0, s.image.width)))
+        est_grid = approximation_error(sg, grid_img.astype(np.float64), pack_scene(sg, 0), window)
         t_est = time.perf_counter() - t0
+        noise_ref = np.sqrt(np.mean(se ** 2)) / float(np.mean(u - bt))
         rows.append(dict(scene=name, single=f"{e_single:.4f}", octaves=f"{e_approx:.4f}",
                          estimate=f"{est.rel_rmse:.4f}", estimate_se=f"{est.stderr:.4f}",
-                         ratio=f"{est.rel_rmse / e_approx:.2f}", t_single=f"{t_single:.2f}",
-                         t_octaves=f"{t_approx:.2f}", t_estimate=f"{t_est:.1f}", t_reference=f"{ref_sec:.0f}"))
-        print(f"{name:16s} single {e_single:.3f}  octaves {e_approx:.3f}  estimate {est.rel_rmse:.3f} "
-              f"+- {est.stderr:.3f} ({est.rel_rmse / e_approx:.2f}x)  time single {t_single:.2f} s, octaves "
-              f"{t_approx:.2f} s, estimate {t_est:.1f} s", flush=True)
+                         ratio=f"{est.rel_rmse / e_approx:.2f}", grid=f"{e_grid:.4f}", grid_noise=f"{noise_grid:.4f}",
+                         grid_estimate=f"{est_grid.rel_rmse:.4f}", grid_estimate_se=f"{est_grid.stderr:.4f}",
+                         grid_ratio=f"{est_grid.rel_rmse / max(e_grid, 1e-9):.2f}", reference_noise=f"{noise_ref:.4f}",
+                         t_single=f"{t_single:.2f}", t_octaves=f"{t_approx:.2f}", t_grid=f"{t_grid:.2f}",
+                         t_estimate=f"{t_est:.1f}", t_reference=f"{ref_sec:.0f}"))
+        print(f"{name:16s} single {e_single:.3f}  octaves {e_approx:.3f} (estimate {est.rel_rmse:.3f}, "
+              f"{est.rel_rmse / e_approx:.2f}x)  grid {e_grid:.4f} (its noise {noise_grid:.4f}; estimate "
+              f"{est_grid.rel_rmse:.4f} +- {est_grid.stderr:.4f}, {est_grid.rel_rmse / max(e_grid, 1e-9):.2f}x)  "
+              f"reference noise {noise_ref:.4f}  time single {t_single:.2f} s, octaves {t_approx:.2f} s, grid "
+              f"{t_grid:.2f} s, estimate {t_est:.1f} s", flush=True)
     if not args.no_csv:
         write_csv(RESULTS / "approximate.csv", rows)
     return {"rows": rows}
@@ -157,16 +197,16 @@ def timing(args):
         path = ROOT / "scenes" / name
         single = cm.load_scene(path, width=args.size, height=args.size)
         approx = with_settings(replace(single, ambient=None), scattering="approximate")
+        grid = with_settings(approx, method="grid")
 
         def run(scene):
             t0 = time.perf_counter()
             cm.render(scene, progress=False)
             return time.perf_counter() - t0
-        times = alternate({"single": (single,), "octaves": (approx,)}, args.repeats, run)
+        times = alternate({"single": (single,), "octaves": (approx,), "grid": (grid,)}, args.repeats, run)
         med = {k: float(np.median(v)) for k, v in times.items()}
-        print(f"{name}: single {med['single']:.2f} s ({min(times['single']):.2f}-{max(times['single']):.2f}), "
-              f"octaves {med['octaves']:.2f} s ({min(times['octaves']):.2f}-{max(times['octaves']):.2f}): "
-              f"{med['octaves'] / med['single']:.2f}x", flush=True)
+        print(f"{name}: " + ", ".join(f"{k} {med[k]:.2f} s ({min(v):.2f}-{max(v):.2f}, {med[k] / med['single']:.2f}x)"
+                                      for k, v in times.items()), flush=True)
         out[name] = med
     return out
 
@@ -225,12 +265,13 @@ def figure(args):
 
 def main(argv=None, quick=False):
     ap = parser(__doc__, no_csv=True)
-    ap.add_argument("what", choices=("references", "fit", "report", "timing", "figure"))
+    ap.add_argument("what", choices=("references", "fit", "tune", "report", "timing", "figure"))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--paths", type=int, default=512)
     args, quick = parse(ap, argv, quick)
-    return {"references": references, "fit": fit, "report": report, "timing": timing, "figure": figure}[args.what](args)
+    return {"references": references, "fit": fit, "tune": tune, "report": report, "timing": timing,
+            "figure": figure}[args.what](args)
 
 
 if __name__ == "__main__":
