@@ -115,19 +115,19 @@ def _map_depth(x, maps, mi):
     return lambda x, maps, mi: map_optical_depth(x, maps, mi)
 
 
-def grid_light(radiance, x, d, m):
-    """(r, g, b): the scattered light medium m sends along -d at x per unit sigma_s, from the radiance grid
+def grid_light(radiance, x, m):
+    """(r, g, b): the light medium m scatters at x towards the camera per unit sigma_s, from the radiance grid
     (kernels.fluence.grid_scattered); black without one (None)."""
     if radiance is None:
         return 0.0, 0.0, 0.0
-    return grid_scattered(radiance, x, d, m)
+    return grid_scattered(radiance, x, m)
 
 
 @overload(grid_light, **OVERLOAD)
-def _grid_light(radiance, x, d, m):
+def _grid_light(radiance, x, m):
     if _absent(radiance):
-        return lambda radiance, x, d, m: (0.0, 0.0, 0.0)
-    return lambda radiance, x, d, m: grid_scattered(radiance, x, d, m)
+        return lambda radiance, x, m: (0.0, 0.0, 0.0)
+    return lambda radiance, x, m: grid_scattered(radiance, x, m)
 
 
 def has_grid(radiance):

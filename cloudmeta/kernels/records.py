@@ -66,12 +66,11 @@ Lights = namedtuple("Lights", ["kind", "vec", "rgb", "maps"])
 SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient", "octaves",
                                            "radiance"])
 
-#: the scattered radiance field of the approximate mode's grid method (kernels.fluence): a box of cubic
-#: cells, origin (3,), cell size, dims (3,) (cell c = i + nx (j + ny k)); coef (cells, 3, K) per cell and
-#: colour the field's moments on the real spherical harmonics of degree <= 1 (K = 4) or 2 (K = 9), as
-#: values at the cell's centre; moments (M, 3) per medium its phase function's Funk-Hecke factors
-#: lambda_0..2 (1, g, g^2 for HG)
-RadianceGrid = namedtuple("RadianceGrid", ["origin", "size", "dims", "coef", "moments"])
+#: the approximate mode's grid method (kernels.fluence): a box of cubic cells, origin (3,), cell size, dims (3,)
+#: (cell c = i + nx (j + ny k)); coef (cells, 3, M) per cell, colour and medium the light the medium scatters
+#: towards the camera per unit sigma_s, as a value at the cell's centre; towards (cells, 3) the unit
+#: direction from each cell's centre to the camera
+RadianceGrid = namedtuple("RadianceGrid", ["origin", "size", "dims", "coef", "towards"])
 
 #: where the grid method's photons come from (kernels.fluence.emit): per source kind (S,) (kinds.LIGHTS, or
 #: fluence.ENVIRONMENT), vec (S, 3) the direction towards a directional light or a point light's position,

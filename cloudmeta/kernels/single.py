@@ -187,7 +187,7 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
         for c in range(3):
             j_val[c, col] += ratio * scene.ambient[c]
         # the approximate mode's grid: the orders a node's exact T_l does not count (black in other scenes)
-        g_r, g_g, g_b = grid_light(scene.radiance, pos, d, m)
+        g_r, g_g, g_b = grid_light(scene.radiance, pos, m)
         j_val[0, col] += ratio * g_r
         j_val[1, col] += ratio * g_g
         j_val[2, col] += ratio * g_b

@@ -30,9 +30,13 @@ from ..kernels.single import render_pixels
 from .pack import background_along, pixel_directions, single_octave
 from .tracking import path_settings, paths_grid, paths_maps
 
-#: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel
+#: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
 ERROR_PIXELS = 128
 ERROR_PATHS = 64
+#: the paths are quadrupled, up to MAX_ERROR_PATHS, while the estimate's standard error is above this share of
+#: it (or it is not above the paths' own noise): a small error needs quieter unbiased pixels to be seen
+ERROR_PRECISION = 0.35
+MAX_ERROR_PATHS = 1024
 
 
 def check_approximate(scene):
@@ -67,6 +71,18 @@ def sample_pixels(alpha, n, seed):
 
 
 def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXELS, paths=ERROR_PATHS):
+    """The approximation's ApproximationError (``estimate_error``) with ``paths`` unbiased paths per sampled
+    pixel, quadrupled while the estimate is not resolved (ERROR_PRECISION) and paths stay within
+    MAX_ERROR_PATHS."""
+    while True:
+        est = estimate_error(scene, image, packed, window, seed, pixels, paths)
+        resolved = 0.0 < est.rel_rmse < np.inf and est.stderr <= ERROR_PRECISION * est.rel_rmse
+        if resolved or est.pixels == 0 or paths * 4 > MAX_ERROR_PATHS:
+            return est
+        paths *= 4
+
+
+def estimate_error(scene, image, packed, window, seed, pixels, paths):
     """An ApproximationError of the approximate ``image`` (the tile ``window`` of the frame, H x W x 4)
     rendered from ``packed``: on a sample of its cloud pixels the unbiased estimate U (single scattering
     with exact order 1, plus ``paths`` Monte Carlo paths of the orders above) against A, the image's pixel.

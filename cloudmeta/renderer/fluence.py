@@ -1,5 +1,6 @@
 """The approximate mode's grid method (``render: {scattering: approximate, method: grid}``, docs/approximate.md):
-the radiance grid that kernels.fluence deposits and the single-scattering quadrature gathers.
+the grid of scattered light towards the camera that kernels.fluence deposits and the single-scattering
+quadrature gathers.
 
 ``radiance_grid`` spreads the photons over the lights and the environment by power, traces them in
 BATCHES fixed batches on threads (each deposits into its own array; the sum runs in batch order, so the grid
@@ -15,17 +16,15 @@ import numba
 import numpy as np
 
 from ..kernels.fluence import ENVIRONMENT, trace_photons
-from ..kernels.kinds import DIRECTIONAL, DOUBLE_HG, HG, RAYLEIGH
+from ..kernels.kinds import DIRECTIONAL
 from ..kernels.records import PhotonSources, RadianceGrid
 from ..scene.atmosphere import sky_mean
 from .tracking import RR_ORDER, majorant_grid
 
 #: photons are traced in this many batches, whatever the threads (bit-identical grids)
 BATCHES = 8
-#: the real spherical harmonics kept: 4 (degree <= 1, the P1 of the issue) or 9 (degree <= 2)
-HARMONICS = 9
 #: per quality preset: (cells along the longest side of the media's box, photons)
-GRID_PRESETS = {"draft": (24, 1 << 17), "default": (32, 1 << 18), "fine": (48, 1 << 20)}
+GRID_PRESETS = {"draft": (24, 1 << 21), "default": (40, 1 << 23), "fine": (56, 1 << 25)}
 
 
 def grid_settings(scene):
@@ -33,24 +32,6 @@ def grid_settings(scene):
     cells, photons = GRID_PRESETS[scene.render.quality]
     given_cells, given_photons = scene.render.grid or (None, None)
     return int(given_cells or cells), int(given_photons or photons)
-
-
-def phase_moments(phase_rows):
-    """(M, 3): per medium lambda_0..2 = 2 pi int p(mu) P_l(mu) dmu of its phase function (records.Media.phase
-    rows kind, g1, g2, w): 1, g, g^2 for HG, their mix for a double HG, 1, 0, 1/10 for Rayleigh, 1, 0, 0
-    isotropic."""
-    out = np.zeros((len(phase_rows), 3))
-    for m, (kind, g1, g2, w) in enumerate(np.asarray(phase_rows, np.float64)):
-        kind = int(kind)
-        if kind == HG:
-            out[m] = [1.0, g1, g1 * g1]
-        elif kind == DOUBLE_HG:
-            out[m] = [1.0, w * g1 + (1 - w) * g2, w * g1 * g1 + (1 - w) * g2 * g2]
-        elif kind == RAYLEIGH:
-            out[m] = [1.0, 0.0, 0.1]
-        else:
-            out[m] = [1.0, 0.0, 0.0]
-    return out
 
 
 def photon_sources(scene, records, centre, radius, photons) -> PhotonSources:
@@ -86,32 +67,38 @@ def photon_sources(scene, records, centre, radius, photons) -> PhotonSources:
                          background=records.background)
 
 
-def radiance_grid(scene, records, seed) -> RadianceGrid:
-    """The records.RadianceGrid of the scene (records: its packed records.SceneRecords): module docstring."""
+def radiance_grid(scene, records, seed, camera_position) -> RadianceGrid:
+    """The records.RadianceGrid of the scene (records: its packed records.SceneRecords) seen from
+    camera_position: module docstring."""
     cells, photons = grid_settings(scene)
     med = records.media
     mgrid = majorant_grid(scene, med)
     lo = mgrid.origin
     extent = mgrid.dims * mgrid.size
-    size = float(extent.max()) / cells
+    # cubic cells, as many as a cube of ``cells`` per side: a flat deck gets cells as small as a round cloud's
+    size = min(float(np.prod(extent)) ** (1.0 / 3.0) / cells, float(extent.max()) / 2.0)
     dims = np.maximum(np.ceil(extent / size - 1e-9), 1).astype(np.int64)
     centre = lo + 0.5 * extent
     radius = 0.5 * float(np.linalg.norm(extent)) * 1.001
     src = photon_sources(scene, records, centre, radius, photons)
-    n_cells = int(np.prod(dims))
+    k, j, i = np.meshgrid(*(np.arange(n) for n in dims[::-1]), indexing="ij")
+    centres = lo + (np.stack([i, j, k], -1).reshape(-1, 3) + 0.5) * size
+    towards = np.asarray(camera_position, np.float64) - centres
+    towards /= np.maximum(np.linalg.norm(towards, axis=1, keepdims=True), 1e-300)
+    n_cells, n_media = len(centres), len(med.albedo)
     shell = RadianceGrid(origin=np.ascontiguousarray(lo, np.float64), size=size, dims=dims,
-                         coef=np.zeros((1, 3, HARMONICS)), moments=phase_moments(med.phase))
+                         coef=np.zeros((1, 3, n_media)), towards=np.ascontiguousarray(towards))
     total = int(src.first[-1])
     edges = [total * b // BATCHES for b in range(BATCHES + 1)]
     max_order = int(scene.render.max_order)
 
     def batch(b):
-        coef = np.zeros((n_cells, 3, HARMONICS))
+        coef = np.zeros((n_cells, 3, n_media))
         trace_photons(med, mgrid, src, shell, coef, np.int64(seed), np.int64(edges[b]), np.int64(edges[b + 1]),
                       np.int64(max_order), np.int64(RR_ORDER))
         return coef
 
-    coef = np.zeros((n_cells, 3, HARMONICS))
+    coef = np.zeros((n_cells, 3, n_media))
     threads = numba.get_num_threads()
     with ThreadPoolExecutor(threads) as pool:
         for wave in range(0, BATCHES, threads):  # a wave of batches at a time: threads + 1 arrays in memory
@@ -119,3 +106,12 @@ def radiance_grid(scene, records, seed) -> RadianceGrid:
                 coef += part  # in batch order: the same sum on any thread count
     coef /= size ** 3
     return shell._replace(coef=coef)
+
+
+def with_radiance_grid(scene, packed, seed):
+    """``packed`` (a renderer.pack.Packed) with the grid method's records.RadianceGrid in its records, for a scene
+    rendered by ``scattering: approximate, method: grid`` with media; else ``packed`` as it is."""
+    if scene.render.scattering != "approximate" or scene.render.method != "grid" or not scene.media:
+        return packed
+    grid = radiance_grid(scene, packed.records, seed, scene.camera.position)
+    return packed._replace(records=packed.records._replace(radiance=grid))

@@ -16,6 +16,7 @@ from ..scene.schema import Scene
 from ..scene.vocabulary import SCATTERING_MODES
 from .bands import tile_window
 from .denoise import aux_images, denoise_paths, require_denoiser
+from .fluence import with_radiance_grid
 from .estimate import estimated_rel_rmse, with_estimate
 from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, render_multiple
@@ -101,7 +102,7 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         estimator.check(scene)
     # one packing; the pilot (renderer.pilot) measures the frame's scattered light: the quadrature's scale
     base = scene_quality(scene)
-    packed = pack_scene(scene, seed, base)
+    packed = with_radiance_grid(scene, pack_scene(scene, seed, base), seed)  # the grid method's photons, once
     quality, scattered = pilot_quality(scene, packed, base)
     packed = packed._replace(quadrature=quadrature(quality))
     target = scene.render.error

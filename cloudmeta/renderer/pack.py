@@ -126,7 +126,7 @@ def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
     background = background_table(scene)
     octaves = single_octave()
     if scene.render.scattering == "approximate" and scene.render.method == "octaves":
-        # renderer.approximate: the octaves, the environment as ambient (method grid: pack_scene adds its grid)
+        # renderer.approximate: the octaves, the environment as ambient (method grid: renderer.fluence adds its grid)
         octaves = octave_table(*scene.render.octaves)
         ambient = sky_mean(background)  # a one-row table is its own mean
     return SceneRecords(media=med, surfaces=surfaces, lights=lights, background=background, ambient=ambient,
@@ -345,7 +345,4 @@ def pack_scene(scene, seed, quality: Quality | None = None) -> Packed:
     """The scene packed for the kernels, at the scene's quality settings or at ``quality``."""
     quad = quadrature(scene_quality(scene) if quality is None else quality)
     records = scene_records(scene, quad, scene.render.shadow_map or SHADOW_MAP_RESOLUTION)
-    if scene.render.scattering == "approximate" and scene.render.method == "grid" and scene.media:
-        from .fluence import radiance_grid  # (renderer.fluence builds on this module: imported here, not above)
-        records = records._replace(radiance=radiance_grid(scene, records, seed))
     return Packed(camera=pack_camera(scene, seed), records=records, quadrature=quad)

@@ -1,5 +1,5 @@
-"""The approximate mode's grid method (renderer.fluence, kernels.fluence): photons deposit the scattered
-radiance field on a grid; the quadrature gathers it. It keeps the white furnace, agrees with the unbiased
+"""The approximate mode's grid method (renderer.fluence, kernels.fluence): photons deposit the light scattered
+towards the camera on a grid; the quadrature gathers it. It keeps the white furnace, agrees with the unbiased
 estimator on a small cloud, does not depend on the thread count, and is compiled only where it is used."""
 import os
 import subprocess
@@ -13,7 +13,7 @@ import pytest
 
 from cloudmeta.errors import SceneError
 from cloudmeta.renderer import render, render_frame
-from cloudmeta.renderer.fluence import grid_settings, phase_moments
+from cloudmeta.renderer.fluence import grid_settings, with_radiance_grid
 from cloudmeta.renderer.multiple import render_multiple
 from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.scene import load_scene
@@ -24,13 +24,12 @@ GRID = "{quality: draft, scattering: approximate, method: grid, grid: {cells: 12
 
 def test_white_furnace(tmp_path):
     """Albedo 1, no lights, a uniform environment L: the radiance is L everywhere and in every direction, so the
-    grid's moments are L sqrt(4 pi) (degree 0) and 0 (above), up to the photons' noise, and the image is L."""
+    light scattered towards the camera per unit sigma_s is L in every cell, up to the photons' noise, and the
+    image is L."""
     scene = cloud(tmp_path, GRID.replace("40000", "200000") + ", max_order: 100000}", lights="[]", albedo=1.0,
                   background="[0.5, 0.7, 1.0]")
-    grid = pack_scene(scene, 0).records.radiance
-    inside = grid.coef[:, 0, 0] > 0
-    l00 = grid.coef[inside][:, :, 0] / np.sqrt(4 * np.pi)
-    np.testing.assert_allclose(np.median(l00, axis=0), [0.5, 0.7, 1.0], rtol=0.02)
+    grid = with_radiance_grid(scene, pack_scene(scene, 0), 0).records.radiance
+    np.testing.assert_allclose(np.median(grid.coef[:, :, 0], axis=0), [0.5, 0.7, 1.0], rtol=0.02)
     img = render(scene, progress=False)
     np.testing.assert_allclose(img[..., :3].mean(axis=(0, 1)), [0.5, 0.7, 1.0], rtol=0.02)
     assert np.abs(img[..., :3] / np.array([0.5, 0.7, 1.0]) - 1).max() < 0.08
@@ -75,7 +74,7 @@ def test_bit_identical_whatever_the_thread_count(tmp_path):
 
 def test_settings(tmp_path):
     scene = cloud(tmp_path, "{quality: fine, scattering: approximate, method: grid, grid: {photons: 1000}}")
-    assert grid_settings(scene) == (48, 1000)
+    assert grid_settings(scene) == (56, 1000)
     assert grid_settings(cloud(tmp_path, "{quality: draft, scattering: approximate, method: grid}"))[0] == 24
     with pytest.raises(SceneError, match=r"render\.grid\.cells"):
         cloud(tmp_path, "{scattering: approximate, method: grid, grid: {cells: 1}}")
@@ -87,18 +86,6 @@ def test_settings(tmp_path):
           - {kernel: wyvill6, threshold: 0.5, balls: [{center: [0, 0, -3], radius: 1}]}"""
     with pytest.raises(SceneError, match=r"render\.method"):
         render(cloud(tmp_path, GRID + "}", extra=surface), progress=False)
-
-
-def test_phase_moments():
-    """Funk-Hecke factors lambda_l = 2 pi int p P_l against a quadrature of the phase functions themselves."""
-    from cloudmeta.kernels.optics import phase
-    mu, w = np.polynomial.legendre.leggauss(400)
-    rows = [(0, 0, 0, 0), (1, 0.85, 0, 0), (1, -0.3, 0, 0), (2, 0.8, -0.4, 0.7), (3, 0, 0, 0)]
-    got = phase_moments(rows)
-    for row, lam in zip(rows, got):
-        p = np.array([phase(int(row[0]), row[1], row[2], row[3], m) for m in mu])
-        want = [2 * np.pi * np.sum(w * p * leg) for leg in (np.ones_like(mu), mu, 1.5 * mu ** 2 - 0.5)]
-        np.testing.assert_allclose(lam, want, atol=1e-6)
 
 
 def test_a_single_scattering_scene_compiles_none_of_it(tmp_path):
