@@ -78,22 +78,15 @@ def deposit(o, w, t_max, rg, coef, rgb, med, walk):
 def _disk_point(centre, w, radius, u1, u2, out):
     """out = a point uniform on the disk of ``radius`` about ``centre`` perpendicular to the unit w, moved back
     along w by ``radius`` (so that o + t w, t >= 0, crosses the whole sphere)."""
+    turn(w, 0.0, u2, out)  # the unit vector perpendicular to w at azimuth 2 pi u2
     r = radius * math.sqrt(u1)
-    phi = 2.0 * math.pi * u2
-    sign = 1.0 if w[2] >= 0.0 else -1.0  # an orthonormal frame about w (Duff et al. 2017)
-    a = -1.0 / (sign + w[2])
-    b = w[0] * w[1] * a
-    t0, t1, t2 = 1.0 + sign * w[0] * w[0] * a, sign * b, -sign * w[0]
-    b0, b1, b2 = b, sign + w[1] * w[1] * a, -w[1]
-    x = r * math.cos(phi)
-    yv = r * math.sin(phi)
-    out[0] = centre[0] + x * t0 + yv * b0 - radius * w[0]
-    out[1] = centre[1] + x * t1 + yv * b1 - radius * w[1]
-    out[2] = centre[2] + x * t2 + yv * b2 - radius * w[2]
+    for c in range(3):
+        out[c] = centre[c] + r * out[c] - radius * w[c]
 
 
 @njit(**NJIT_INLINE)
 def _sphere_direction(u1, u2, out):
+    """out = the direction uniform on the sphere at (u1, u2)."""
     z = 1.0 - 2.0 * u1
     s = math.sqrt(max(0.0, 1.0 - z * z))
     phi = 2.0 * math.pi * u2
@@ -104,6 +97,7 @@ def _sphere_direction(u1, u2, out):
 
 @njit(**NJIT_INLINE)
 def _source_of(first, p):
+    """The source whose photons (first[s] .. first[s + 1] - 1) include photon p."""
     s = 0
     while first[s + 1] <= p:
         s += 1

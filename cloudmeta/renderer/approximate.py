@@ -71,21 +71,11 @@ def sample_pixels(alpha, n, seed):
 
 
 def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXELS, paths=ERROR_PATHS):
-    """The approximation's ApproximationError (``estimate_error``) with ``paths`` unbiased paths per sampled
-    pixel, quadrupled while the estimate is not resolved (ERROR_PRECISION) and paths stay within
-    MAX_ERROR_PATHS."""
-    while True:
-        est = estimate_error(scene, image, packed, window, seed, pixels, paths)
-        resolved = 0.0 < est.rel_rmse < np.inf and est.stderr <= ERROR_PRECISION * est.rel_rmse
-        if resolved or est.pixels == 0 or paths * 4 > MAX_ERROR_PATHS:
-            return est
-        paths *= 4
-
-
-def estimate_error(scene, image, packed, window, seed, pixels, paths):
     """An ApproximationError of the approximate ``image`` (the tile ``window`` of the frame, H x W x 4)
     rendered from ``packed``: on a sample of its cloud pixels the unbiased estimate U (single scattering
     with exact order 1, plus ``paths`` Monte Carlo paths of the orders above) against A, the image's pixel.
+    The paths are quadrupled while the estimate is not resolved (ERROR_PRECISION) and they stay within
+    MAX_ERROR_PATHS; the exact part, the paths' grid and maps are computed once.
 
     The image's squared error is the mean over all pixels of (A - U)^2; background pixels have none, so
     it is the cloud fraction times the mean over cloud pixels, estimated on the sample, less the paths'
@@ -102,7 +92,7 @@ def estimate_error(scene, image, packed, window, seed, pixels, paths):
     camera, records, quad = packed.camera, packed.records, packed.quadrature
     single = records._replace(octaves=single_octave(), ambient=np.zeros(3), radiance=None)
     settings = path_settings(scene, paths, scene.render.max_order)
-    grid = paths_grid(scene, records.media, settings)
+    grid = paths_grid(scene, records.media, settings)  # neither depends on the number of paths
     maps = paths_maps(scene, packed, settings)
     h, w = scene.image.height, scene.image.width
     exact = np.zeros((h, w, 4))
@@ -111,27 +101,37 @@ def estimate_error(scene, image, packed, window, seed, pixels, paths):
     mean = np.zeros((h, w, 3))
     stderr = np.zeros((h, w, 3))
 
-    def pixel(k):  # each pixel writes its own entries; every random number is keyed by the pixel
-        i, j = int(rows[k]), int(cols[k])
-        render_pixels(camera, single, quad, np.int64(i), np.int64(j), np.int64(j + 1), exact, nearest, counts)
-        render_paths(camera, single, quad, settings, grid, maps, np.int64(i), np.int64(j), np.int64(j + 1), mean,
-                     stderr)
+    def each_pixel(job):  # each pixel writes its own entries; every random number is keyed by the pixel
+        with ThreadPoolExecutor(numba.get_num_threads()) as pool:
+            list(pool.map(lambda k: job(np.int64(rows[k]), np.int64(cols[k])), range(chosen.size)))
 
-    with ThreadPoolExecutor(numba.get_num_threads()) as pool:
-        list(pool.map(pixel, range(chosen.size)))
-    unbiased = exact[rows, cols, :3] + mean[rows, cols]
+    each_pixel(lambda i, j: render_pixels(camera, single, quad, i, j, j + 1, exact, nearest, counts))
     approx = image[rows - r_lo, cols - c_lo, :3]
-    noise2 = stderr[rows, cols] ** 2
-    sq = ((approx - unbiased) ** 2 - noise2).mean(axis=1)  # per sampled pixel, over the channels
-    frac = cloud / tile.size
     background = background_along(records.background, pixel_directions(camera, rows, cols))
-    scattered = unbiased - background * (1.0 - exact[rows, cols, 3:4])
+    frac = cloud / tile.size
+    while True:
+        settings = settings._replace(paths=int(paths))
+        each_pixel(lambda i, j: render_paths(camera, single, quad, settings, grid, maps, i, j, j + 1, mean, stderr))
+        est = _estimate(exact[rows, cols], mean[rows, cols], stderr[rows, cols], approx, background, frac,
+                        int(chosen.size), cloud, paths)
+        resolved = 0.0 < est.rel_rmse < np.inf and est.stderr <= ERROR_PRECISION * est.rel_rmse
+        if resolved or paths * 4 > MAX_ERROR_PATHS:
+            return est
+        paths *= 4
+
+
+def _estimate(exact, mean, stderr, approx, background, frac, n, cloud, paths):
+    """The ApproximationError from the sampled pixels' exact part (n, 4), paths' mean and standard error
+    (n, 3), the approximate pixels and the background along them (n, 3); approximation_error says how."""
+    unbiased = exact[:, :3] + mean
+    sq = ((approx - unbiased) ** 2 - stderr ** 2).mean(axis=1)  # per sampled pixel, over the channels
+    scattered = unbiased - background * (1.0 - exact[:, 3:4])
     mean_scattered = frac * float(scattered.mean())
     if mean_scattered <= 0.0:
-        return ApproximationError(np.inf, np.inf, int(chosen.size), cloud, paths)
+        return ApproximationError(np.inf, np.inf, n, cloud, paths)
     ms = max(frac * float(sq.mean()), 0.0)
     rel = np.sqrt(ms) / mean_scattered
     # the estimate's own spread: the sampling error of the mean of sq, through the square root
     se_ms = frac * float(sq.std(ddof=1)) / np.sqrt(sq.size) if sq.size > 1 else np.inf
     se = 0.5 * se_ms / (np.sqrt(ms) * mean_scattered) if ms > 0 else np.inf
-    return ApproximationError(float(rel), float(se), int(chosen.size), cloud, int(paths))
+    return ApproximationError(float(rel), float(se), n, cloud, int(paths))

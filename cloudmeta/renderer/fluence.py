@@ -34,35 +34,28 @@ def grid_settings(scene):
     return int(given_cells or cells), int(given_photons or photons)
 
 
-def photon_sources(scene, records, centre, radius, photons) -> PhotonSources:
-    """The lights and the environment as photon sources, ``photons`` shared among them by power."""
-    kinds, vecs, powers, unit = [], [], [], []
+def photon_sources(records, centre, radius, photons) -> PhotonSources:
+    """The lights and the environment (records: the packed records.SceneRecords) as photon sources around the
+    sphere (centre, radius), ``photons`` shared among those with light by power."""
+    sources = []  # (kind, vec, the power of all its photons per unit of rgb)
     lights = records.lights
     disk = math.pi * radius * radius
     for li in range(len(lights.kind)):
-        rgb = np.asarray(lights.rgb[li], np.float64)
         per = disk if lights.kind[li] == DIRECTIONAL else 4.0 * math.pi  # irradiance x disk, intensity x 4 pi
-        kinds.append(int(lights.kind[li]))
-        vecs.append(np.asarray(lights.vec[li], np.float64))
-        unit.append(rgb * per)
-        powers.append(float(np.sum(rgb)) * per)
+        sources.append((int(lights.kind[li]), lights.vec[li], lights.rgb[li] * per))
+    # the environment's photons carry its radiance along their direction (kernels.fluence.emit): its mean here
     sky = np.asarray(sky_mean(records.background), np.float64)
-    if np.any(sky > 0):
-        kinds.append(ENVIRONMENT)
-        vecs.append(np.zeros(3))
-        unit.append(np.full(3, 4.0 * math.pi * disk))
-        powers.append(float(np.sum(sky)) * 4.0 * math.pi * disk)
-    powers = np.asarray(powers)
-    keep = powers > 0
-    kinds = [k for k, ok in zip(kinds, keep) if ok]
-    vecs = [v for v, ok in zip(vecs, keep) if ok]
-    unit = [u for u, ok in zip(unit, keep) if ok]
-    powers = powers[keep]
-    counts = np.maximum(1, np.round(photons * powers / powers.sum())).astype(np.int64) if len(powers) else \
-        np.zeros(0, np.int64)
-    rgb = np.array([u / n for u, n in zip(unit, counts)], np.float64).reshape(-1, 3)
-    return PhotonSources(kind=np.array(kinds, np.int64), vec=np.array(vecs, np.float64).reshape(-1, 3),
-                         rgb=np.ascontiguousarray(rgb), first=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+    sources.append((ENVIRONMENT, np.zeros(3), sky * (4.0 * math.pi * disk)))
+    sources = [src for src in sources if np.sum(src[2]) > 0]
+    powers = np.array([np.sum(src[2]) for src in sources])
+    counts = np.maximum(1, np.round(photons * powers / max(powers.sum(), 1e-300))).astype(np.int64)
+    # one photon's rgb: a light's power per photon; the environment's 4 pi x disk per photon, times its radiance
+    unit = [(np.full(3, 4.0 * math.pi * disk) if kind == ENVIRONMENT else power) / n
+            for (kind, _, power), n in zip(sources, counts)]
+    return PhotonSources(kind=np.array([src[0] for src in sources], np.int64),
+                         vec=np.array([src[1] for src in sources], np.float64).reshape(-1, 3),
+                         rgb=np.ascontiguousarray(np.array(unit, np.float64).reshape(-1, 3)),
+                         first=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
                          centre=np.ascontiguousarray(centre, np.float64), radius=float(radius),
                          background=records.background)
 
@@ -80,7 +73,7 @@ def radiance_grid(scene, records, seed, camera_position) -> RadianceGrid:
     dims = np.maximum(np.ceil(extent / size - 1e-9), 1).astype(np.int64)
     centre = lo + 0.5 * extent
     radius = 0.5 * float(np.linalg.norm(extent)) * 1.001
-    src = photon_sources(scene, records, centre, radius, photons)
+    src = photon_sources(records, centre, radius, photons)
     k, j, i = np.meshgrid(*(np.arange(n) for n in dims[::-1]), indexing="ij")
     centres = lo + (np.stack([i, j, k], -1).reshape(-1, 3) + 0.5) * size
     towards = np.asarray(camera_position, np.float64) - centres

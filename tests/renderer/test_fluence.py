@@ -88,9 +88,10 @@ def test_settings(tmp_path):
         render(cloud(tmp_path, GRID + "}", extra=surface), progress=False)
 
 
-def test_a_single_scattering_scene_compiles_none_of_it(tmp_path):
-    """kernels.features: without a radiance grid the gather compiles to black, and the photons are never
-    traced: a fresh process rendering a single-scattering scene compiles nothing of kernels.fluence."""
+def test_a_single_scattering_scene_traces_no_photons(tmp_path):
+    """A fresh process rendering a single-scattering scene compiles none of kernels.fluence's photon kernels.
+    (The gather is inlined where it is used; kernels.features compiles it to black without a grid, which the
+    render hashes of single-scattering scenes, unchanged by it, show.)"""
     scene = cloud(tmp_path, "{quality: draft}", size=4)
     code = textwrap.dedent(f"""
         import cloudmeta as cm
