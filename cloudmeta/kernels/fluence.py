@@ -17,8 +17,16 @@ photon from its first scattering on (its straight flight is the light's exact or
 image), an environment photon from its entry (the single-scattering renderer has no order of the
 environment).
 
+Inside the cone cos theta > cos_c around v(c) the deposited p_m is clamped to p_c (records.RadianceGrid.peak):
+the peak above it is carried by the camera ray as a lower extinction (records.SceneRecords.view_media; the
+delta split of docs/approximate.md).
+
+With ``where`` COLLISIONS the photons deposit instead at their tentative collisions (``tallied_flight``), each
+cell then estimating the integral of sigma_s,m S_m over it; renderer.fluence adds the cells' integral of
+sigma_s,m (``cell_scattering``) as RadianceGrid.filled.
+
 At a quadrature node x the gather adds (sigma_s,m / sigma_t) S_m(x) to J, S_m trilinear between the cells'
-centres.
+centres (``grid_scattered``).
 
 Random numbers: a photon's emission comes from the quasi-random stream sampling.sobol4 keyed by (seed,
 source, the photon's index in its source), so that a source's photons are stratified over its disk and
@@ -38,12 +46,17 @@ from .kinds import DIRECTIONAL, POINT
 from .optics import phase
 from .records import PathKey
 from .sampling import sample_phase_cos, sobol4, turn, uniform
-from .tracking import alloc_track_work, delta_flight, pick_medium, walk_advance, walk_cell, walk_start
+from .tracking import (DIM_FLIGHT, _exponential, alloc_track_work, delta_flight, pick_medium, point_sigma, walk_advance,
+                       walk_cell, walk_start)
 
 #: a photon source that is the environment (the others are kinds.LIGHTS)
 ENVIRONMENT = 2
 #: the path index of every photon's random key (the camera paths' are their index in the pixel, small)
 PHOTON_PATH = 1 << 40
+#: where the photons deposit (render.grid.deposit): along their flights (track length), or at their tentative
+#: collisions, weighted by sigma_s (renderer.fluence then divides by the cells' sigma_s)
+FLIGHTS = 0
+COLLISIONS = 1
 #: a photon vertex's random dimensions (kernels.tracking's flights use theirs, from 1 << 20)
 DIM_ROULETTE = 5
 DIM_MEDIUM = 6
@@ -58,6 +71,7 @@ def deposit(o, w, t_max, rg, coef, rgb, med, walk):
     cell c of the grid rg, for every cell the segment crosses and every medium m."""
     t, t_end = walk_start(o, w, t_max, rg, walk)
     phases = med.phase
+    peak = rg.peak
     while t < t_end:
         c, t_out = walk_cell(rg, walk)
         t_out = min(t_out, t_end)
@@ -66,12 +80,110 @@ def deposit(o, w, t_max, rg, coef, rgb, med, walk):
             v = rg.towards[c]
             cos_theta = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
             for m in range(coef.shape[2]):
-                a = length * phase(phases[m, 0], phases[m, 1], phases[m, 2], phases[m, 3], cos_theta)
+                ph = phase(phases[m, 0], phases[m, 1], phases[m, 2], phases[m, 3], cos_theta)
+                if cos_theta > peak[m, 0]:
+                    ph = min(ph, peak[m, 1])  # the forward peak is the camera ray's (SceneRecords.view_media)
+                a = length * ph
                 for col in range(3):
                     coef[c, col, m] += rgb[col] * a
         t = t_out
         if t >= t_end or not walk_advance(rg, walk):
             break
+
+
+@njit(**NJIT_INLINE)
+def _cell_at(x, origin, size, dims):
+    """The flat index of the cell of the box (origin, cubic cells of size, dims) that holds x, -1 outside it."""
+    c = 0
+    stride = 1
+    for a in range(3):
+        v = (x[a] - origin[a]) / size
+        if not (0.0 <= v < dims[a]):
+            return -1
+        c += int(v) * stride
+        stride *= dims[a]
+    return c
+
+
+@njit(**NJIT)
+def collide(x, w, rg, coef, rgb, sigma, sigma_maj, med):
+    """coef[c, col, m] += rgb[col] (albedo_m sigma[m] / sigma_maj) p_m(w . rg.towards[c]) at a tentative collision
+    x of a flight in direction w against the majorant sigma_maj (sigma[m]: medium m's sigma_t at x), c the cell
+    holding x (tallied_flight)."""
+    c = _cell_at(x, rg.origin, rg.size, rg.dims)
+    if c < 0:
+        return
+    v = rg.towards[c]
+    cos_theta = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
+    phases = med.phase
+    for m in range(coef.shape[2]):
+        if sigma[m] <= 0.0:
+            continue
+        ph = phase(phases[m, 0], phases[m, 1], phases[m, 2], phases[m, 3], cos_theta)
+        if cos_theta > rg.peak[m, 0]:
+            ph = min(ph, rg.peak[m, 1])  # the forward peak is the camera ray's (SceneRecords.view_media)
+        a = med.albedo[m] * sigma[m] / sigma_maj * ph
+        for col in range(3):
+            coef[c, col, m] += rgb[col] * a
+
+
+@njit(**NJIT)
+def tallied_flight(o, d, grid, med, key, vertex, w, rg, coef, rgb, tally):
+    """kernels.tracking.delta_flight's flight (the same random numbers, the same result), which, with ``tally``,
+    also deposits at every tentative collision y (null or real, up to the flight's end) rgb sigma_s,m(y) /
+    sigma_max p_m(d . v) (``collide`` with weight sigma_t(y) / sigma_max): the tentative collisions are a
+    Poisson process of rate sigma_max, so the sum is an unbiased estimate of the flight's integral of
+    sigma_s,m p_m L over each cell, from about sigma_max / sigma_t times as many points as its real collision."""
+    t, t_end = walk_start(o, d, np.inf, grid, w)
+    dim = np.int64(DIM_FLIGHT)
+    tau = _exponential(key, vertex, dim)
+    dim += 1
+    while t < t_end:
+        c, t_out = walk_cell(grid, w)
+        t_out = min(t_out, t_end)
+        mu = grid.sigma_max[c]
+        if mu > 0.0:
+            while t + tau / mu < t_out:
+                t += tau / mu
+                for a in range(3):
+                    w.x[a] = o[a] + t * d[a]
+                sigma_t, sigma_s = point_sigma(w.x, grid, med, c, w.sigma)
+                if tally and sigma_t > 0.0:
+                    collide(w.x, d, rg, coef, rgb, w.sigma, mu, med)
+                accept = uniform(key.seed, key.pixel, key.path, vertex, dim)
+                dim += 1
+                if accept * mu < sigma_t:
+                    return t, sigma_t, sigma_s
+                tau = _exponential(key, vertex, dim)
+                dim += 1
+            tau = max(tau - mu * (t_out - t), 0.0)
+        t = t_out
+        if t >= t_end or not walk_advance(grid, w):
+            break
+    return np.inf, 0.0, 0.0
+
+
+@njit(**NJIT)
+def cell_scattering(mgrid, med, rg, n, out):
+    """out[c, m] = the integral of sigma_s,m over cell c of rg: the mean over n^3 points (the centres of a
+    regular subdivision of the cell) times its volume, sigma from the majorant grid mgrid's ball lists."""
+    n_med = med.start.shape[0] - 1
+    sigma = np.zeros(n_med)
+    x = np.empty(3)
+    nx, ny = rg.dims[0], rg.dims[1]
+    vol = rg.size ** 3 / n ** 3
+    for c in range(out.shape[0]):
+        ijk = (c % nx, (c // nx) % ny, c // (nx * ny))
+        for q in range(n * n * n):
+            sub = (q % n, (q // n) % n, q // (n * n))
+            for a in range(3):
+                x[a] = rg.origin[a] + (ijk[a] + (sub[a] + 0.5) / n) * rg.size
+            mc = _cell_at(x, mgrid.origin, mgrid.size, mgrid.dims)
+            if mc < 0 or mgrid.sigma_max[mc] <= 0.0:
+                continue
+            point_sigma(x, mgrid, med, mc, sigma)
+            for m in range(n_med):
+                out[c, m] += med.albedo[m] * sigma[m] * vol
 
 
 @njit(**NJIT_INLINE)
@@ -131,11 +243,12 @@ def emit(src, s, seed, p, o, w, rgb):
 
 
 @njit(**NJIT)
-def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_order):
+def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_order, where):
     """Photons first .. last - 1 (numbered over all sources, records.PhotonSources.first) deposit into coef
     (cells, 3, media) of the grid rg: every flight that carries scattered light (module docstring) and whose
-    light reaches the camera at an order <= max_order. Russian roulette from rr_order scatterings on, with
-    survival min(1, weight)."""
+    light reaches the camera at an order <= max_order, along the flight (where FLIGHTS) or at its tentative
+    collisions (COLLISIONS: tallied_flight). Russian roulette from rr_order scatterings on, with survival
+    min(1, weight)."""
     n_med = med.start.shape[0] - 1
     track = alloc_track_work(n_med)
     walk = alloc_track_work(n_med)
@@ -154,14 +267,20 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
         scatterings = 0
         vertex = 0
         while True:
-            t, sigma_t, sigma_s = delta_flight(o, w, np.inf, mgrid, med, key, vertex, track)
             # this flight's light reaches the camera at order scatterings + 1 (the node's own scattering)
-            if not (from_light and scatterings == 0):
-                for c in range(3):
-                    power[c] = rgb[c] * weight
+            deposits = not (from_light and scatterings == 0)
+            for c in range(3):
+                power[c] = rgb[c] * weight
+            if where == COLLISIONS:
+                t, sigma_t, sigma_s = tallied_flight(o, w, mgrid, med, key, vertex, track, rg, coef, power, deposits)
+            else:
+                t, sigma_t, sigma_s = delta_flight(o, w, np.inf, mgrid, med, key, vertex, track)
+            if deposits and where == FLIGHTS:
                 deposit(o, w, t, rg, coef, power, med, walk)
             if t == np.inf or sigma_t <= 0.0:
                 break
+            for c in range(3):
+                x[c] = o[c] + t * w[c]
             scatterings += 1
             if scatterings + 1 > max_order:
                 break
@@ -174,8 +293,6 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
                 if uniform(seed, p, PHOTON_PATH, vertex, DIM_ROULETTE) >= q:
                     break
                 weight /= q
-            for c in range(3):
-                x[c] = o[c] + t * w[c]
             m = pick_medium(track.sigma, med, sigma_s, uniform(seed, p, PHOTON_PATH, vertex, DIM_MEDIUM))
             ph = med.phase[m]
             cos_theta = sample_phase_cos(ph[0], ph[1], ph[2], ph[3], uniform(seed, p, PHOTON_PATH, vertex, DIM_LOBE),
@@ -202,7 +319,9 @@ def _axis(xa, origin, size, n):
 @njit(**NJIT_INLINE)
 def grid_scattered(rg, x, m):
     """(r, g, b): what medium m scatters at x towards the camera, per unit sigma_s (module docstring): S_m
-    trilinear between the cells' centres."""
+    trilinear between the cells' centres: sum w_c coef_c / sum w_c filled_c over the 8 cells c around x, w_c the
+    trilinear weights (records.RadianceGrid: filled is the cells' mean sigma_s,m where the photons deposited at
+    their collisions, 1 where they deposited along their flights)."""
     ix0, ix1, fx = _axis(x[0], rg.origin[0], rg.size, rg.dims[0])
     iy0, iy1, fy = _axis(x[1], rg.origin[1], rg.size, rg.dims[1])
     iz0, iz1, fz = _axis(x[2], rg.origin[2], rg.size, rg.dims[2])
@@ -211,15 +330,19 @@ def grid_scattered(rg, x, m):
     r = 0.0
     g = 0.0
     b = 0.0
+    total = 0.0
     for corner in range(8):
         i = ix1 if corner & 1 else ix0
         j = iy1 if corner & 2 else iy0
         k = iz1 if corner & 4 else iz0
         wt = (fx if corner & 1 else 1.0 - fx) * (fy if corner & 2 else 1.0 - fy) * (fz if corner & 4 else 1.0 - fz)
+        c = i + nx * (j + ny * k)
         if wt == 0.0:
             continue
-        c = i + nx * (j + ny * k)
+        total += wt * rg.filled[c, m]
         r += wt * coef[c, 0, m]
         g += wt * coef[c, 1, m]
         b += wt * coef[c, 2, m]
-    return r, g, b
+    if total <= 0.0:
+        return 0.0, 0.0, 0.0
+    return r / total, g / total, b / total

@@ -62,15 +62,19 @@ Lights = namedtuple("Lights", ["kind", "vec", "rgb", "maps"])
 #: a sky over elevation, kernels.camera.background_radiance) and the ambient radiance (3,)
 #: octaves (N, 3): rows (a^i, b^i, c^i) of the approximate mode's octaves (docs/approximate.md); the single
 #: row (1, 1, 1) is single scattering; radiance: the approximate mode's RadianceGrid (method grid), else None
-#: (and then its gather is not compiled, kernels.features)
+#: (and then its gather is not compiled, kernels.features); view_media: the Media the camera ray sees, the same
+#: record as media except in the grid method, where each medium's forward peak f of the phase function leaves
+#: the camera ray's extinction (scale (1 - f albedo), albedo / (1 - f albedo): docs/approximate.md, delta split)
 SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "background", "ambient", "octaves",
-                                           "radiance"])
+                                           "radiance", "view_media"])
 
 #: the approximate mode's grid method (kernels.fluence): a box of cubic cells, origin (3,), cell size, dims (3,)
 #: (cell c = i + nx (j + ny k)); coef (cells, 3, M) per cell, colour and medium the light the medium scatters
 #: towards the camera per unit sigma_s, as a value at the cell's centre; towards (cells, 3) the unit
-#: direction from each cell's centre to the camera
-RadianceGrid = namedtuple("RadianceGrid", ["origin", "size", "dims", "coef", "towards"])
+#: direction from each cell's centre to the camera; peak (M, 2) per medium (cos_c, p_c): the phase function the
+#: photons deposit is clamped to p_c where cos theta > cos_c (its forward peak goes to SceneRecords.view_media);
+#: filled (cells, M) 1.0 where cell c holds medium m, else 0.0 (the gather interpolates between filled cells)
+RadianceGrid = namedtuple("RadianceGrid", ["origin", "size", "dims", "coef", "towards", "peak", "filled"])
 
 #: where the grid method's photons come from (kernels.fluence.emit): per source kind (S,) (kinds.LIGHTS, or
 #: fluence.ENVIRONMENT), vec (S, 3) the direction towards a directional light or a point light's position,

@@ -145,7 +145,7 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     cursor = (k, s_prev, u_prev) locates the previous node (nodes come in increasing u, within the
     segment's intervals below k_b); returns (scratch, the cursor of this node)."""
     k, s_prev, u_prev = cursor
-    med = scene.media
+    med = scene.view_media
     rp = work.pieces
     j_val = work.nodes.j_val
     light_buf = work.nodes.light
@@ -463,7 +463,7 @@ def single_scattering(o, d, scene, quad, work, out):
     rp = work.pieces
     n = 0
     if t_hit > 0.0:  # a camera inside a surface sees no media
-        scratch, rp, n = collect_media(o, d, t_hit, scene.media, quad.tol_t, scratch, rp, work.cand, work.stack)
+        scratch, rp, n = collect_media(o, d, t_hit, scene.view_media, quad.tol_t, scratch, rp, work.cand, work.stack)
     work = RayWork(scratch, rp, work.cand, work.stack, work.nodes)
     for c in range(3):
         out[c] = 0.0

@@ -90,7 +90,7 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     tw = c_hi - c_lo
     rows, cols = r_lo + chosen // tw, c_lo + chosen % tw
     camera, records, quad = packed.camera, packed.records, packed.quadrature
-    single = records._replace(octaves=single_octave(), ambient=np.zeros(3), radiance=None)
+    single = records._replace(octaves=single_octave(), ambient=np.zeros(3), radiance=None, view_media=records.media)
     settings = path_settings(scene, paths, scene.render.max_order)
     grid = paths_grid(scene, records.media, settings)  # neither depends on the number of paths
     maps = paths_maps(scene, packed, settings)

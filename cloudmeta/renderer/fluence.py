@@ -5,7 +5,9 @@ quadrature gathers.
 ``radiance_grid`` spreads the photons over the lights and the environment by power, traces them in
 BATCHES fixed batches on threads (each deposits into its own array; the sum runs in batch order, so the grid
 does not depend on the thread count), and turns the sums into the field's moments at the cells' centres.
-Its resolution and photon count come from the quality preset (GRID_PRESETS), or ``render.grid``.
+Its resolution and photon count come from the quality preset (GRID_PRESETS), or ``render.grid``, which also
+says where the photons deposit (``grid_deposit``). ``delta_split`` takes each phase function's forward peak
+out of the deposits and into the camera ray's extinction (docs/approximate.md).
 """
 from __future__ import annotations
 
@@ -15,14 +17,19 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from ..kernels.fluence import ENVIRONMENT, trace_photons
+from ..kernels.fluence import COLLISIONS, ENVIRONMENT, FLIGHTS, cell_scattering, trace_photons
 from ..kernels.kinds import DIRECTIONAL
+from ..kernels.optics import phase
 from ..kernels.records import PhotonSources, RadianceGrid
 from ..scene.atmosphere import sky_mean
 from .tracking import RR_ORDER, majorant_grid
 
 #: photons are traced in this many batches, whatever the threads (bit-identical grids)
 BATCHES = 8
+#: the half-angle (degrees) of the forward cone whose phase peak the camera ray carries, not the grid
+PEAK_DEGREES = 10.0
+#: the cells' integral of sigma_s (render.grid.deposit: collisions): the mean over SUBCELLS^3 points per cell
+SUBCELLS = 4
 #: per quality preset: (cells along the longest side of the media's box, photons)
 GRID_PRESETS = {"draft": (24, 1 << 21), "default": (40, 1 << 23), "fine": (56, 1 << 25)}
 
@@ -30,8 +37,14 @@ GRID_PRESETS = {"draft": (24, 1 << 21), "default": (40, 1 << 23), "fine": (56, 1
 def grid_settings(scene):
     """(cells, photons) of the scene: render.grid's keys, else its quality preset's."""
     cells, photons = GRID_PRESETS[scene.render.quality]
-    given_cells, given_photons = scene.render.grid or (None, None)
+    given_cells, given_photons = (scene.render.grid or (None, None))[:2]
     return int(given_cells or cells), int(given_photons or photons)
+
+
+def grid_deposit(scene):
+    """kernels.fluence.FLIGHTS or COLLISIONS: render.grid.deposit (flights where absent)."""
+    grid = scene.render.grid or ()
+    return COLLISIONS if len(grid) > 2 and grid[2] == "collisions" else FLIGHTS
 
 
 def photon_sources(records, centre, radius, photons) -> PhotonSources:
@@ -60,6 +73,34 @@ def photon_sources(records, centre, radius, photons) -> PhotonSources:
                          background=records.background)
 
 
+def phase_peak(row, cos_c):
+    """(f, p_c) of a medium's phase function (records.Media.phase row): p_c = p(cos_c) and f the part of p above
+    p_c inside the cone cos theta > cos_c, f = 1 - the integral over the sphere of p clamped to p_c there."""
+    x = (np.arange(20_000) + 0.5) / 20_000  # cos = 1 - (1 - cos_c) x^3 crowds the nodes into the peak
+    cos = 1.0 - (1.0 - cos_c) * x ** 3
+    dcos = 3.0 * (1.0 - cos_c) * x ** 2 / x.size
+    p = phase_table(row, cos)
+    p_c = float(phase_table(row, np.array([cos_c]))[0])
+    f = 2.0 * math.pi * float(np.sum(np.maximum(p - p_c, 0.0) * dcos))
+    return f, p_c
+
+
+def phase_table(row, cos):
+    """The phase function of a records.Media.phase row at each of the cosines ``cos``."""
+    return np.array([phase(row[0], row[1], row[2], row[3], float(c)) for c in cos])
+
+
+def delta_split(media, peak_degrees):
+    """(peak (M, 2) for the grid's deposits, the camera ray's records.Media): each medium's forward peak f
+    leaves the camera ray's extinction, sigma_t - f sigma_s, and its scattering (docs/approximate.md)."""
+    cos_c = math.cos(math.radians(peak_degrees))
+    split = [phase_peak(row, cos_c) for row in media.phase]
+    f = np.array([s[0] for s in split])
+    keep = 1.0 - f * media.albedo
+    peak = np.array([[cos_c, s[1]] for s in split], np.float64).reshape(-1, 2)
+    return peak, media._replace(scale=media.scale * keep, albedo=media.albedo / keep)
+
+
 def radiance_grid(scene, records, seed, camera_position) -> RadianceGrid:
     """The records.RadianceGrid of the scene (records: its packed records.SceneRecords) seen from
     camera_position: module docstring."""
@@ -79,16 +120,19 @@ def radiance_grid(scene, records, seed, camera_position) -> RadianceGrid:
     towards = np.asarray(camera_position, np.float64) - centres
     towards /= np.maximum(np.linalg.norm(towards, axis=1, keepdims=True), 1e-300)
     n_cells, n_media = len(centres), len(med.albedo)
+    peak, _ = delta_split(med, PEAK_DEGREES)
     shell = RadianceGrid(origin=np.ascontiguousarray(lo, np.float64), size=size, dims=dims,
-                         coef=np.zeros((1, 3, n_media)), towards=np.ascontiguousarray(towards))
+                         coef=np.zeros((1, 3, n_media)), towards=np.ascontiguousarray(towards), peak=peak,
+                         filled=np.ones((1, n_media)))
     total = int(src.first[-1])
     edges = [total * b // BATCHES for b in range(BATCHES + 1)]
     max_order = int(scene.render.max_order)
+    where = grid_deposit(scene)
 
     def batch(b):
         coef = np.zeros((n_cells, 3, n_media))
         trace_photons(med, mgrid, src, shell, coef, np.int64(seed), np.int64(edges[b]), np.int64(edges[b + 1]),
-                      np.int64(max_order), np.int64(RR_ORDER))
+                      np.int64(max_order), np.int64(RR_ORDER), np.int64(where))
         return coef
 
     coef = np.zeros((n_cells, 3, n_media))
@@ -97,8 +141,14 @@ def radiance_grid(scene, records, seed, camera_position) -> RadianceGrid:
         for wave in range(0, BATCHES, threads):  # a wave of batches at a time: threads + 1 arrays in memory
             for part in pool.map(batch, range(wave, min(wave + threads, BATCHES))):
                 coef += part  # in batch order: the same sum on any thread count
-    coef /= size ** 3
-    return shell._replace(coef=coef)
+    if where == FLIGHTS:
+        return shell._replace(coef=coef / size ** 3, filled=np.ones((n_cells, n_media)))
+    # the collisions estimate each cell's integral of sigma_s,m S_m; the gather divides it by that of sigma_s,m
+    # (both interpolated): S_m where the medium is, not diluted by the cell's empty part, and a thin cell's few
+    # collisions weigh as little as its sigma_s
+    sigma_s = np.zeros((n_cells, n_media))
+    cell_scattering(mgrid, med, shell, np.int64(SUBCELLS), sigma_s)
+    return shell._replace(coef=coef / size ** 3, filled=sigma_s / size ** 3)
 
 
 def with_radiance_grid(scene, packed, seed):
@@ -107,4 +157,5 @@ def with_radiance_grid(scene, packed, seed):
     if scene.render.scattering != "approximate" or scene.render.method != "grid" or not scene.media:
         return packed
     grid = radiance_grid(scene, packed.records, seed, scene.camera.position)
-    return packed._replace(records=packed.records._replace(radiance=grid))
+    _, view = delta_split(packed.records.media, PEAK_DEGREES)
+    return packed._replace(records=packed.records._replace(radiance=grid, view_media=view))

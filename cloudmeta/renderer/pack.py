@@ -130,7 +130,7 @@ def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
         octaves = octave_table(*scene.render.octaves)
         ambient = sky_mean(background)  # a one-row table is its own mean
     return SceneRecords(media=med, surfaces=surfaces, lights=lights, background=background, ambient=ambient,
-                        octaves=octaves, radiance=None)
+                        octaves=octaves, radiance=None, view_media=med)
 
 
 def single_octave():

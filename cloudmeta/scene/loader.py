@@ -24,8 +24,8 @@ from .domain import check_domain
 from .schema import Camera, Density, ImageSettings, Medium, OutputSettings, Phase, RenderSettings, Scene, Surface
 from .atmosphere import DEFAULT_GROUND_ALBEDO, sky_mean
 from .lights import SUN_KEYS, SunLight, read_light, read_sun, unit
-from .vocabulary import (APPROXIMATE_METHODS, DENSITY_MODES, OCTAVES, PHASE_PARAMS, QUALITIES, SCATTERING_MODES,
-                         SHADOW_MODES)
+from .vocabulary import (APPROXIMATE_METHODS, DENSITY_MODES, GRID_DEPOSITS, OCTAVES, PHASE_PARAMS, QUALITIES,
+                         SCATTERING_MODES, SHADOW_MODES)
 
 #: an up vector closer than this (sine of the angle) to the view direction is refused
 _PARALLEL_SINE = 1e-6
@@ -167,13 +167,13 @@ def _octaves(render):
 
 
 def _grid(render):
-    """render.grid: {cells, photons} (docs/approximate.md), None where absent (the quality preset's); a key left
-    out is None too and takes the preset's value."""
+    """render.grid: {cells, photons, deposit} (docs/approximate.md), None where absent (the quality preset's and
+    flights); cells or photons left out are None too and take the preset's value."""
     if "grid" not in render.data:
         return None
-    n = render.node("grid", ("cells", "photons"), {})
+    n = render.node("grid", ("cells", "photons", "deposit"), {})
     return (n.integer("cells", None, **_int_range(2, lim.MAX_GRID_CELLS)),
-            n.integer("photons", None, **_int_range(1, lim.MAX_PHOTONS)))
+            n.integer("photons", None, **_int_range(1, lim.MAX_PHOTONS)), n.choice("deposit", GRID_DEPOSITS, "flights"))
 
 
 EXPOSURE = dict(check=lambda v: abs(v) <= lim.MAX_EXPOSURE,

@@ -32,6 +32,8 @@ HYBRID_SHARE = 0.25
 SCATTERING_MODES = ("single", "multiple", "approximate")
 #: render.method of the approximate mode (renderer.approximate)
 APPROXIMATE_METHODS = ("octaves", "grid")
+#: render.grid.deposit: where the grid method's photons deposit (docs/approximate.md)
+GRID_DEPOSITS = ("flights", "collisions")
 #: render.octaves when not given: (count, a, b, c), fitted by validation/accuracy/approximate.py on scenes
 #: that are not the ones its error is reported on (docs/approximate.md)
 OCTAVES = (4, 0.5, 0.6, 0.45)
