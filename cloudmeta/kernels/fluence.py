@@ -39,14 +39,16 @@ import math
 
 import numpy as np
 from numba import njit
+from numba.core import types
+from numba.extending import overload
 
 from .camera import background_radiance
-from .config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE, OVERLOAD
 from .kinds import DIRECTIONAL, POINT
 from .optics import phase
-from .records import PathKey
+from .records import FlightTally, PathKey
 from .sampling import sample_phase_cos, sobol4, turn, uniform
-from .tracking import (DIM_FLIGHT, _exponential, alloc_track_work, delta_flight, pick_medium, point_sigma, walk_advance,
+from .tracking import (alloc_track_work, delta_flight, pick_medium, point_sigma, tentative_collision, walk_advance,
                        walk_cell, walk_start)
 
 #: a photon source that is the environment (the others are kinds.LIGHTS)
@@ -109,7 +111,7 @@ def _cell_at(x, origin, size, dims):
 def collide(x, w, rg, coef, rgb, sigma, sigma_maj, med):
     """coef[c, col, m] += rgb[col] (albedo_m sigma[m] / sigma_maj) p_m(w . rg.towards[c]) at a tentative collision
     x of a flight in direction w against the majorant sigma_maj (sigma[m]: medium m's sigma_t at x), c the cell
-    holding x (tallied_flight)."""
+    holding x (_deposit_at_tentative)."""
     c = _cell_at(x, rg.origin, rg.size, rg.dims)
     if c < 0:
         return
@@ -127,40 +129,16 @@ def collide(x, w, rg, coef, rgb, sigma, sigma_maj, med):
             coef[c, col, m] += rgb[col] * a
 
 
-@njit(**NJIT)
-def tallied_flight(o, d, grid, med, key, vertex, w, rg, coef, rgb, tally):
-    """kernels.tracking.delta_flight's flight (the same random numbers, the same result), which, with ``tally``,
-    also deposits at every tentative collision y (null or real, up to the flight's end) rgb sigma_s,m(y) /
-    sigma_max p_m(d . v) (``collide`` with weight sigma_t(y) / sigma_max): the tentative collisions are a
-    Poisson process of rate sigma_max, so the sum is an unbiased estimate of the flight's integral of
+@overload(tentative_collision, **OVERLOAD)
+def _deposit_at_tentative(tally, x, d, sigma, sigma_maj, med):
+    """With a records.FlightTally, kernels.tracking.delta_flight deposits at every tentative collision (``collide``):
+    the tentative collisions are a Poisson process of rate sigma_max, so the sum of rgb sigma_s,m(x) / sigma_max
+    p_m(d . v) over those up to the flight's end is an unbiased estimate of the flight's integral of
     sigma_s,m p_m L over each cell, from about sigma_max / sigma_t times as many points as its real collision."""
-    t, t_end = walk_start(o, d, np.inf, grid, w)
-    dim = np.int64(DIM_FLIGHT)
-    tau = _exponential(key, vertex, dim)
-    dim += 1
-    while t < t_end:
-        c, t_out = walk_cell(grid, w)
-        t_out = min(t_out, t_end)
-        mu = grid.sigma_max[c]
-        if mu > 0.0:
-            while t + tau / mu < t_out:
-                t += tau / mu
-                for a in range(3):
-                    w.x[a] = o[a] + t * d[a]
-                sigma_t, sigma_s = point_sigma(w.x, grid, med, c, w.sigma)
-                if tally and sigma_t > 0.0:
-                    collide(w.x, d, rg, coef, rgb, w.sigma, mu, med)
-                accept = uniform(key.seed, key.pixel, key.path, vertex, dim)
-                dim += 1
-                if accept * mu < sigma_t:
-                    return t, sigma_t, sigma_s
-                tau = _exponential(key, vertex, dim)
-                dim += 1
-            tau = max(tau - mu * (t_out - t), 0.0)
-        t = t_out
-        if t >= t_end or not walk_advance(grid, w):
-            break
-    return np.inf, 0.0, 0.0
+    if isinstance(tally, types.BaseNamedTuple) and tally.instance_class is FlightTally:
+        return lambda tally, x, d, sigma, sigma_maj, med: collide(x, d, tally.grid, tally.coef, tally.rgb, sigma,
+                                                                  sigma_maj, med)
+    return None
 
 
 @njit(**NJIT)
@@ -247,7 +225,7 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
     """Photons first .. last - 1 (numbered over all sources, records.PhotonSources.first) deposit into coef
     (cells, 3, media) of the grid rg: every flight that carries scattered light (module docstring) and whose
     light reaches the camera at an order <= max_order, along the flight (where FLIGHTS) or at its tentative
-    collisions (COLLISIONS: tallied_flight). Russian roulette from rr_order scatterings on, with survival
+    collisions (COLLISIONS: a records.FlightTally). Russian roulette from rr_order scatterings on, with survival
     min(1, weight)."""
     n_med = med.start.shape[0] - 1
     track = alloc_track_work(n_med)
@@ -271,8 +249,9 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
             deposits = not (from_light and scatterings == 0)
             for c in range(3):
                 power[c] = rgb[c] * weight
-            if where == COLLISIONS:
-                t, sigma_t, sigma_s = tallied_flight(o, w, mgrid, med, key, vertex, track, rg, coef, power, deposits)
+            if where == COLLISIONS and deposits:
+                t, sigma_t, sigma_s = delta_flight(o, w, np.inf, mgrid, med, key, vertex, track,
+                                                   FlightTally(rg, coef, power))
             else:
                 t, sigma_t, sigma_s = delta_flight(o, w, np.inf, mgrid, med, key, vertex, track)
             if deposits and where == FLIGHTS:

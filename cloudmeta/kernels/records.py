@@ -76,6 +76,10 @@ SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "backg
 #: filled (cells, M) 1.0 where cell c holds medium m, else 0.0 (the gather interpolates between filled cells)
 RadianceGrid = namedtuple("RadianceGrid", ["origin", "size", "dims", "coef", "towards", "peak", "filled"])
 
+#: a delta-tracked flight's deposits at its tentative collisions (kernels.fluence, render.grid.deposit: collisions):
+#: the RadianceGrid, its coef (cells, 3, M) and the photon's power rgb (3,)
+FlightTally = namedtuple("FlightTally", ["grid", "coef", "rgb"])
+
 #: where the grid method's photons come from (kernels.fluence.emit): per source kind (S,) (kinds.LIGHTS, or
 #: fluence.ENVIRONMENT), vec (S, 3) the direction towards a directional light or a point light's position,
 #: rgb (S, 3) the power of one photon (times the environment's radiance along it), first (S + 1,) the

@@ -25,8 +25,10 @@ import math
 
 import numpy as np
 from numba import njit
+from numba.core import types
+from numba.extending import overload
 
-from .config import NJIT, NJIT_INLINE
+from .config import NJIT, NJIT_INLINE, OVERLOAD
 from .density import rho_value
 from .grid import cell_index
 from .metaball import ball_field, falloff
@@ -261,11 +263,26 @@ def pick_medium(sigma, med, sigma_s, u):
 
 # --- the estimators ------------------------------------------------------------------------------------------
 
+def tentative_collision(tally, x, d, sigma, sigma_maj, med):
+    """What a flight's ``tally`` does at each of its tentative collisions x (null or real; sigma[m] medium m's
+    sigma_t there, sigma_maj the majorant): nothing without one (None, or left out). A kernel module that
+    passes a tally adds its own overload for the tally's type (kernels.fluence)."""
+    return None
+
+
+@overload(tentative_collision, **OVERLOAD)
+def _no_tally(tally, x, d, sigma, sigma_maj, med):
+    if isinstance(tally, (types.NoneType, types.Omitted)):
+        return lambda tally, x, d, sigma, sigma_maj, med: None
+    return None
+
+
 @njit(**NJIT)
-def delta_flight(o, d, t_max, grid, med, key, vertex, w):
+def delta_flight(o, d, t_max, grid, med, key, vertex, w, tally=None):
     """Delta tracking along o + t d, t in [0, t_max], against the grid's sigma_max: the first real collision,
     (t, sigma_t, sigma_s there; w.sigma each medium's sigma_t), or (inf, 0, 0) when the flight gets through.
-    Its distribution is that of the exact optical depth's inversion: t with density sigma_t(t) e^-tau(t)."""
+    Its distribution is that of the exact optical depth's inversion: t with density sigma_t(t) e^-tau(t).
+    ``tally``: see tentative_collision (the grid method's deposits; compiled to nothing without one)."""
     t, t_end = walk_start(o, d, t_max, grid, w)
     dim = np.int64(DIM_FLIGHT)
     tau = _exponential(key, vertex, dim)
@@ -280,6 +297,7 @@ def delta_flight(o, d, t_max, grid, med, key, vertex, w):
                 for a in range(3):
                     w.x[a] = o[a] + t * d[a]
                 sigma_t, sigma_s = point_sigma(w.x, grid, med, c, w.sigma)
+                tentative_collision(tally, w.x, d, w.sigma, mu, med)
                 accept = uniform(key.seed, key.pixel, key.path, vertex, dim)
                 dim += 1
                 if accept * mu < sigma_t:
