@@ -41,12 +41,14 @@ def test_white_furnace(tmp_path, deposit):
     assert np.abs(img[..., :3] / np.array([0.5, 0.7, 1.0]) - 1).max() < (0.08 if deposit == "flights" else 0.12)
 
 
-@pytest.mark.parametrize("lights", [None, "[{type: point, position: [2.5, -2.5, 2.0], intensity: 40.0}]"])
-def test_agrees_with_the_unbiased_estimator(tmp_path, lights):
-    """A small cloud lit by the sun (or a point light) and a blue sky: the grid method's image against 1024
-    unbiased paths per pixel (their noise subtracted), relative to the scattered light, within 12 % (single scattering alone misses
-    by far more)."""
-    block = "{quality: default, scattering: approximate, method: grid, grid: {cells: 16, photons: 400000}, max_order: 32}"
+@pytest.mark.parametrize("lights, deposit", [(None, "flights"), (None, "collisions"),
+                                             ("[{type: point, position: [2.5, -2.5, 2.0], intensity: 40.0}]", "flights")])
+def test_agrees_with_the_unbiased_estimator(tmp_path, lights, deposit):
+    """A small cloud lit by the sun (or a point light) and a blue sky: the grid method's image (either deposit)
+    against 1024 unbiased paths per pixel (their noise subtracted), relative to the scattered light, within 12 %
+    (single scattering alone misses by far more)."""
+    block = ("{quality: default, scattering: approximate, method: grid, grid: {cells: 16, photons: 400000, "
+             f"deposit: {deposit}}}, max_order: 32}}")
     scene = cloud(tmp_path, block, lights=lights, size=12)
     grid_img = render(scene, progress=False)[..., :3].astype(np.float64)
     single = render(replace(scene, render=replace(scene.render, scattering="single")), progress=False)
