@@ -21,7 +21,7 @@ Inside the cone cos theta > cos_c around v(c) the deposited p_m is clamped to p_
 the peak above it is carried by the camera ray as a lower extinction (records.SceneRecords.view_media; the
 delta split of docs/approximate.md).
 
-With ``where`` COLLISIONS the photons deposit instead at their tentative collisions (``tallied_flight``), each
+With ``where`` COLLISIONS the photons deposit instead at their tentative collisions (records.FlightTally), each
 cell then estimating the integral of sigma_s,m S_m over it; renderer.fluence adds the cells' integral of
 sigma_s,m (``cell_scattering``) as RadianceGrid.filled.
 
@@ -67,13 +67,19 @@ DIM_COS = 8
 DIM_PHI = 9
 
 
+@njit(**NJIT_INLINE)
+def deposited_phase(phases, peak, m, cos_theta):
+    """p_m(cos_theta), clamped to p_c inside the cone cos_theta > cos_c (peak[m] = (cos_c, p_c)): the forward peak
+    above the clamp is the camera ray's (records.SceneRecords.view_media), not the grid's."""
+    ph = phase(phases[m, 0], phases[m, 1], phases[m, 2], phases[m, 3], cos_theta)
+    return min(ph, peak[m, 1]) if cos_theta > peak[m, 0] else ph
+
+
 @njit(**NJIT)
 def deposit(o, w, t_max, rg, coef, rgb, med, walk):
     """coef[c, col, m] += rgb[col] p_m(w . rg.towards[c]) times the length of o + t w, t in [0, t_max], inside
     cell c of the grid rg, for every cell the segment crosses and every medium m."""
     t, t_end = walk_start(o, w, t_max, rg, walk)
-    phases = med.phase
-    peak = rg.peak
     while t < t_end:
         c, t_out = walk_cell(rg, walk)
         t_out = min(t_out, t_end)
@@ -82,10 +88,7 @@ def deposit(o, w, t_max, rg, coef, rgb, med, walk):
             v = rg.towards[c]
             cos_theta = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
             for m in range(coef.shape[2]):
-                ph = phase(phases[m, 0], phases[m, 1], phases[m, 2], phases[m, 3], cos_theta)
-                if cos_theta > peak[m, 0]:
-                    ph = min(ph, peak[m, 1])  # the forward peak is the camera ray's (SceneRecords.view_media)
-                a = length * ph
+                a = length * deposited_phase(med.phase, rg.peak, m, cos_theta)
                 for col in range(3):
                     coef[c, col, m] += rgb[col] * a
         t = t_out
@@ -117,14 +120,10 @@ def collide(x, w, rg, coef, rgb, sigma, sigma_maj, med):
         return
     v = rg.towards[c]
     cos_theta = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
-    phases = med.phase
     for m in range(coef.shape[2]):
         if sigma[m] <= 0.0:
             continue
-        ph = phase(phases[m, 0], phases[m, 1], phases[m, 2], phases[m, 3], cos_theta)
-        if cos_theta > rg.peak[m, 0]:
-            ph = min(ph, rg.peak[m, 1])  # the forward peak is the camera ray's (SceneRecords.view_media)
-        a = med.albedo[m] * sigma[m] / sigma_maj * ph
+        a = med.albedo[m] * sigma[m] / sigma_maj * deposited_phase(med.phase, rg.peak, m, cos_theta)
         for col in range(3):
             coef[c, col, m] += rgb[col] * a
 
@@ -258,8 +257,6 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
                 deposit(o, w, t, rg, coef, power, med, walk)
             if t == np.inf or sigma_t <= 0.0:
                 break
-            for c in range(3):
-                x[c] = o[c] + t * w[c]
             scatterings += 1
             if scatterings + 1 > max_order:
                 break
@@ -272,6 +269,8 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
                 if uniform(seed, p, PHOTON_PATH, vertex, DIM_ROULETTE) >= q:
                     break
                 weight /= q
+            for c in range(3):
+                x[c] = o[c] + t * w[c]
             m = pick_medium(track.sigma, med, sigma_s, uniform(seed, p, PHOTON_PATH, vertex, DIM_MEDIUM))
             ph = med.phase[m]
             cos_theta = sample_phase_cos(ph[0], ph[1], ph[2], ph[3], uniform(seed, p, PHOTON_PATH, vertex, DIM_LOBE),
@@ -315,9 +314,9 @@ def grid_scattered(rg, x, m):
         j = iy1 if corner & 2 else iy0
         k = iz1 if corner & 4 else iz0
         wt = (fx if corner & 1 else 1.0 - fx) * (fy if corner & 2 else 1.0 - fy) * (fz if corner & 4 else 1.0 - fz)
-        c = i + nx * (j + ny * k)
         if wt == 0.0:
             continue
+        c = i + nx * (j + ny * k)
         total += wt * rg.filled[c, m]
         r += wt * coef[c, 0, m]
         g += wt * coef[c, 1, m]

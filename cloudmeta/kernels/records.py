@@ -70,10 +70,12 @@ SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "backg
 
 #: the approximate mode's grid method (kernels.fluence): a box of cubic cells, origin (3,), cell size, dims (3,)
 #: (cell c = i + nx (j + ny k)); coef (cells, 3, M) per cell, colour and medium the light the medium scatters
-#: towards the camera per unit sigma_s, as a value at the cell's centre; towards (cells, 3) the unit
+#: towards the camera (per unit sigma_s; with deposits at collisions, times the cell's mean sigma_s), as a value
+#: at the cell's centre; towards (cells, 3) the unit
 #: direction from each cell's centre to the camera; peak (M, 2) per medium (cos_c, p_c): the phase function the
 #: photons deposit is clamped to p_c where cos theta > cos_c (its forward peak goes to SceneRecords.view_media);
-#: filled (cells, M) 1.0 where cell c holds medium m, else 0.0 (the gather interpolates between filled cells)
+#: filled (cells, M) what coef is per (1, or the cell's mean sigma_s,m with deposits at collisions): the gather
+#: interpolates both and divides (kernels.fluence.grid_scattered)
 RadianceGrid = namedtuple("RadianceGrid", ["origin", "size", "dims", "coef", "towards", "peak", "filled"])
 
 #: a delta-tracked flight's deposits at its tentative collisions (kernels.fluence, render.grid.deposit: collisions):

@@ -37,14 +37,14 @@ GRID_PRESETS = {"draft": (24, 1 << 21), "default": (40, 1 << 23), "fine": (56, 1
 def grid_settings(scene):
     """(cells, photons) of the scene: render.grid's keys, else its quality preset's."""
     cells, photons = GRID_PRESETS[scene.render.quality]
-    given_cells, given_photons = (scene.render.grid or (None, None))[:2]
+    given_cells, given_photons, _ = scene.render.grid or (None, None, "flights")
     return int(given_cells or cells), int(given_photons or photons)
 
 
 def grid_deposit(scene):
     """kernels.fluence.FLIGHTS or COLLISIONS: render.grid.deposit (flights where absent)."""
-    grid = scene.render.grid or ()
-    return COLLISIONS if len(grid) > 2 and grid[2] == "collisions" else FLIGHTS
+    _, _, where = scene.render.grid or (None, None, "flights")
+    return COLLISIONS if where == "collisions" else FLIGHTS
 
 
 def photon_sources(records, centre, radius, photons) -> PhotonSources:
@@ -101,9 +101,9 @@ def delta_split(media, peak_degrees):
     return peak, media._replace(scale=media.scale * keep, albedo=media.albedo / keep)
 
 
-def radiance_grid(scene, records, seed, camera_position) -> RadianceGrid:
+def radiance_grid(scene, records, seed, camera_position, peak) -> RadianceGrid:
     """The records.RadianceGrid of the scene (records: its packed records.SceneRecords) seen from
-    camera_position: module docstring."""
+    camera_position, depositing the phase functions clamped by peak (delta_split): module docstring."""
     cells, photons = grid_settings(scene)
     med = records.media
     mgrid = majorant_grid(scene, med)
@@ -120,7 +120,6 @@ def radiance_grid(scene, records, seed, camera_position) -> RadianceGrid:
     towards = np.asarray(camera_position, np.float64) - centres
     towards /= np.maximum(np.linalg.norm(towards, axis=1, keepdims=True), 1e-300)
     n_cells, n_media = len(centres), len(med.albedo)
-    peak, _ = delta_split(med, PEAK_DEGREES)
     shell = RadianceGrid(origin=np.ascontiguousarray(lo, np.float64), size=size, dims=dims,
                          coef=np.zeros((1, 3, n_media)), towards=np.ascontiguousarray(towards), peak=peak,
                          filled=np.ones((1, n_media)))
@@ -156,6 +155,6 @@ def with_radiance_grid(scene, packed, seed):
     rendered by ``scattering: approximate, method: grid`` with media; else ``packed`` as it is."""
     if scene.render.scattering != "approximate" or scene.render.method != "grid" or not scene.media:
         return packed
-    grid = radiance_grid(scene, packed.records, seed, scene.camera.position)
-    _, view = delta_split(packed.records.media, PEAK_DEGREES)
+    peak, view = delta_split(packed.records.media, PEAK_DEGREES)
+    grid = radiance_grid(scene, packed.records, seed, scene.camera.position, peak)
     return packed._replace(records=packed.records._replace(radiance=grid, view_media=view))

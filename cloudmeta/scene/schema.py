@@ -79,7 +79,7 @@ class RenderSettings:
     scattering: str = "single"  #: single | multiple | approximate (README: multiple scattering)
     method: str = "octaves"     #: approximate: the method (docs/approximate.md)
     octaves: tuple = OCTAVES    #: approximate, octaves: (count, a, b, c)
-    grid: tuple | None = None   #: approximate, grid: (cells, photons), None for the quality preset's
+    grid: tuple | None = None   #: approximate, grid: (cells, photons, deposit), None: the preset's, flights
     max_order: int = 64         #: multiple: the highest scattering order
     ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
     track_from: int = 2         #: multiple: the first vertex reached by a tracked flight (docs/model.md §10.1)

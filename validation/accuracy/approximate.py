@@ -125,7 +125,7 @@ def tune(args):
     for cells, photons in settings:
         errs = []
         for name, path in FIT.items():
-            err, noise, sec, _ = grid_error(name, path, args.size, args.paths, (cells, photons))
+            err, noise, sec, _ = grid_error(name, path, args.size, args.paths, (cells, photons, "flights"))
             errs.append(err)
             rows.append(dict(cells=cells, photons=photons, scene=name, error=f"{err:.4f}", noise=f"{noise:.4f}",
                              seconds=f"{sec:.1f}"))
