@@ -30,21 +30,25 @@ BATCHES = 8
 PEAK_DEGREES = 10.0
 #: the cells' integral of sigma_s (render.grid.deposit: collisions): the mean over SUBCELLS^3 points per cell
 SUBCELLS = 4
-#: per quality preset: (cells along the longest side of the media's box, photons)
+#: per quality preset: (cells, as the side of a cube of cells of the media's box's volume; photons)
 GRID_PRESETS = {"draft": (24, 1 << 21), "default": (40, 1 << 23), "fine": (56, 1 << 25)}
+
+
+def _grid_keys(scene):
+    """render.grid's (cells, photons, deposit), with None for cells and photons and flights where it is absent."""
+    return scene.render.grid or (None, None, "flights")
 
 
 def grid_settings(scene):
     """(cells, photons) of the scene: render.grid's keys, else its quality preset's."""
     cells, photons = GRID_PRESETS[scene.render.quality]
-    given_cells, given_photons, _ = scene.render.grid or (None, None, "flights")
+    given_cells, given_photons, _ = _grid_keys(scene)
     return int(given_cells or cells), int(given_photons or photons)
 
 
 def grid_deposit(scene):
     """kernels.fluence.FLIGHTS or COLLISIONS: render.grid.deposit (flights where absent)."""
-    _, _, where = scene.render.grid or (None, None, "flights")
-    return COLLISIONS if where == "collisions" else FLIGHTS
+    return COLLISIONS if _grid_keys(scene)[2] == "collisions" else FLIGHTS
 
 
 def photon_sources(records, centre, radius, photons) -> PhotonSources:
