@@ -46,7 +46,7 @@ from numba import njit
 from .config import NJIT, NJIT_INLINE
 from .bernstein import bernstein_eval, bernstein_mean
 from .media import collect_media, medium_blob, n_media, shadow_transmittance
-from .shadowmap import map_optical_depth
+from .shadowmap import volume_optical_depth
 from .metaball import gradient_sum
 from .optics import phase
 from .bvh import bvh_point_candidates, misses_root_boxes
@@ -174,7 +174,7 @@ def next_event(x, d, k, s, scene, tol_t, j_tol, work, out):
 
 #: inlined: a call that passes the scene's records cost 8 % of a tracked render (one thread, cumulus)
 @njit(**NJIT_INLINE)
-def tracked_next_event(x, d, sigma_t, scene, grid, maps, key, vertex, tol_t, work, track, out):
+def tracked_next_event(x, d, sigma_t, scene, grid, volumes, key, vertex, tol_t, work, track, out):
     """next_event at a tracked vertex x (records.TrackWork track.at_vertex: each medium's sigma_t there,
     sigma_t their sum): the same sum over lights, each T_l an unbiased estimate (light_transmittance);
     surfaces still block exactly. Returns work."""
@@ -187,7 +187,7 @@ def tracked_next_event(x, d, sigma_t, scene, grid, maps, key, vertex, tol_t, wor
         scratch, blocked = surfaces_blocking(x, l_dir, l_max, scene.surfaces, tol_t, scratch, work)
         if blocked:
             continue
-        scratch, t_l = light_transmittance(x, l_dir, l_max, li, scene, grid, maps, key, vertex, tol_t, scratch, work,
+        scratch, t_l = light_transmittance(x, l_dir, l_max, li, scene, grid, volumes, key, vertex, tol_t, scratch, work,
                                            track)
         if t_l == 0.0:
             continue
@@ -204,20 +204,20 @@ def tracked_next_event(x, d, sigma_t, scene, grid, maps, key, vertex, tol_t, wor
 
 
 @njit(**NJIT_INLINE)
-def light_transmittance(x, l_dir, l_max, li, scene, grid, maps, key, vertex, tol_t, scratch, work, track):
+def light_transmittance(x, l_dir, l_max, li, scene, grid, volumes, key, vertex, tol_t, scratch, work, track):
     """An unbiased estimate of light li's transmittance from x along l_dir (up to l_max): (scratch, T_l).
-    With a shadow map (maps, records.ShadowMaps: a directional light), the map's T_map is a control variate:
+    With a light volume (volumes, records.LightVolumes: a directional light), its T_map is a control variate:
     T_l = T_map + (T - T_map) / p with probability p, T being an exact shadow ray, and T_map otherwise;
-    p = CV_PROBABILITY + the spread of the four texels' transmittances (at most 1). (A ratio-tracked T in the
-    correction was tried: its noise, divided by p, doubled the variance.) Without a map (a point light),
-    residual ratio tracking (kernels.tracking)."""
+    p = CV_PROBABILITY + the spread of the four texel columns' transmittances (at most 1). (A ratio-tracked T
+    in the correction was tried: its noise, divided by p, doubled the variance.) Without one (a point
+    light), residual ratio tracking (kernels.tracking)."""
     dim = np.int64(DIM_LIGHT + li * DIM_SPAN)
-    mi = maps.map_of[li]
-    if mi < 0:
+    vi = volumes.map_of[li]
+    if vi < 0:
         return scratch, tracked_transmittance(x, l_dir, l_max, grid, scene.media, key, vertex, dim, track)
-    tau, tau_lo, tau_hi = map_optical_depth(x, maps, mi)
+    tau, tau_lo, tau_hi = volume_optical_depth(x, volumes, vi)
     t_map = math.exp(-tau)
-    # the four texels' spread bounds |T - T_map| where the depth is monotone across the cell: correct there
+    # the four columns' spread bounds |T - T_map| where the depth is monotone across the cell: correct there
     p = min(1.0, CV_PROBABILITY + (math.exp(-tau_lo) - math.exp(-tau_hi)))
     if uniform(key.seed, key.pixel, key.path, vertex, dim - 1) >= p:
         return scratch, t_map
@@ -264,7 +264,7 @@ def exact_vertex(o, d, n_vert, weight, key, camera_segment, scene, tol_t, map_tr
 
 
 @njit(**NJIT_INLINE)
-def tracked_vertex(o, d, n_vert, weight, key, scene, grid, maps, tol_t, has_env, max_order, work, track, light, out):
+def tracked_vertex(o, d, n_vert, weight, key, scene, grid, volumes, tol_t, has_env, max_order, work, track, light, out):
     """One tracked step of path_radiance (kernels.tracking): the next vertex by delta tracking along d (no
     forced collision); a flight that gets through sees the environment (its probability is the
     transmittance: the estimate is unbiased, and it costs no second walk) and ends the path. Otherwise o
@@ -288,7 +288,7 @@ def tracked_vertex(o, d, n_vert, weight, key, scene, grid, maps, tol_t, has_env,
     for m in range(track.sigma.shape[0]):
         track.at_vertex[m] = track.sigma[m]
     light[:] = 0.0
-    work = tracked_next_event(o, d, sigma_t, scene, grid, maps, key, n_vert, tol_t, work, track, light)
+    work = tracked_next_event(o, d, sigma_t, scene, grid, volumes, key, n_vert, tol_t, work, track, light)
     for c in range(3):
         out[c] += weight * light[c]
     m = pick_medium(track.at_vertex, scene.media, sigma_s, uniform(seed, pixel, path, n_vert, DIM_MEDIUM))
@@ -297,7 +297,7 @@ def tracked_vertex(o, d, n_vert, weight, key, scene, grid, maps, tol_t, has_env,
 
 
 @njit(**NJIT)
-def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, grid, maps, work, track, vectors,
+def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, grid, volumes, work, track, vectors,
                   out):
     """out[:3] = one path's estimate of the radiance the deterministic renderer leaves out (orders >= 2
     of the lights, orders >= 1 of the environment) along the camera ray o_cam + t d_cam.
@@ -323,7 +323,7 @@ def path_radiance(o_cam, d_cam, key, camera_segment, scene, quad, settings, grid
             break
         if n_vert > 0 and n_vert + 1 >= track_from:
             work, weight, m, u_cos, u_phi, u_lobe, done = tracked_vertex(
-                o, d, n_vert, weight, key, scene, grid, maps, tol_t, has_env, max_order, work, track, light, out)
+                o, d, n_vert, weight, key, scene, grid, volumes, tol_t, has_env, max_order, work, track, light, out)
             if done:
                 break
         else:
@@ -364,7 +364,7 @@ def _store_mean(acc, acc2, paths, i, j, mean, stderr):
 
 
 @njit(**NJIT)
-def render_paths(camera, scene, quad, settings, grid, maps, row0, p0, p1, mean, stderr):
+def render_paths(camera, scene, quad, settings, grid, volumes, row0, p0, p1, mean, stderr):
     """Pixels p0 .. p1 - 1 (row by row from the start of row row0): per pixel, the mean of
     ``settings.paths`` path estimates into mean (H x W x 3), and its standard error into stderr. Path i
     starts on camera ray i mod spp of the deterministic renderer (camera.camera_ray), so the two add up
@@ -385,7 +385,7 @@ def render_paths(camera, scene, quad, settings, grid, maps, row0, p0, p1, mean, 
     scene = borrow(scene)
     quad = borrow(quad)
     grid = borrow(grid)
-    maps = borrow(maps)
+    volumes = borrow(volumes)
     vectors = PathVectors(np.empty(3), np.empty(3), np.empty(3), np.empty(3))
     d = np.empty(3)
     est = np.empty(3)
@@ -407,8 +407,8 @@ def render_paths(camera, scene, quad, settings, grid, maps, row0, p0, p1, mean, 
             segment = CameraSegment(camera_work.pieces, n_el, u_total)
             for path in range(r, paths, spp):
                 key = PathKey(camera.seed, i * width + j, path)
-                work = path_radiance(camera.position, d, key, segment, scene, quad, settings, grid, maps, work, track,
-                                     vectors, est)
+                work = path_radiance(camera.position, d, key, segment, scene, quad, settings, grid, volumes, work,
+                                     track, vectors, est)
                 for c in range(3):
                     acc[c] += est[c]
                     acc2[c] += est[c] * est[c]

@@ -48,6 +48,12 @@ Surfaces = namedtuple("Surfaces", ["centers", "frames", "weights", "start", "ker
 ShadowMaps = namedtuple("ShadowMaps", ["map_of", "geo", "res", "base", "start", "t0", "t1", "c", "cum",
                                        "reach"])
 
+#: the optical depth towards each directional light on a lattice in the light's frame (kernels.shadowmap,
+#: the paths' control variate): map_of (L,) the light's volume or -1; per volume geo (13,) rows (as a map's),
+#: res (texels per side), depth_n (samples along the light), base (its first sample); tau (V,) float32, the
+#: depth at texel (i, j)'s centre and depth k * geo[12] at base + (i res + j) depth_n + k
+LightVolumes = namedtuple("LightVolumes", ["map_of", "geo", "res", "depth_n", "base", "tau"])
+
 #: the pieces of the texels of shadow maps while they are traced (kernels.shadowmap.trace_texel_chunk):
 #: per piece t0, t1, c (P, C) sigma_t, cum, reach, as in ShadowMaps
 MapPieces = namedtuple("MapPieces", ["t0", "t1", "c", "cum", "reach"])

@@ -152,3 +152,64 @@ def map_optical_depth(x, maps, mi):
             lo = min(lo, tau_k)
             hi = max(hi, tau_k)
     return tau, lo, hi
+
+
+@njit(**NJIT)
+def fill_volume_chunk(maps, mi, geo, res, depth_n, chunk, n_chunks, tau):
+    """Chunk ``chunk`` of n_chunks of the texels of a light volume (records.LightVolumes) over map mi of
+    ``maps``: tau[(i res + j) depth_n + k] = the map's optical depth at the volume's texel (i, j) and depth
+    k geo[12]. A volume on the map's own texels reads each texel's ray exactly; another resolution reads the
+    map bilinearly. nogil, writing only its own texels: cloudmeta.renderer.pack runs chunks on threads."""
+    maps = borrow(maps)  # the caller holds the maps for the whole call (kernels.borrow)
+    n = res * res
+    same = maps.res[mi] == res
+    base = maps.base[mi]
+    x = np.empty(3)
+    for q in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
+        i = q // res
+        j = q % res
+        for k in range(depth_n):
+            s = k * geo[12]
+            if same:
+                value = _texel_depth(maps, res, base, i, j, s)
+            else:
+                for c in range(3):
+                    x[c] = geo[c] + (i + 0.5) * geo[12] * geo[3 + c] + (j + 0.5) * geo[12] * geo[6 + c] + s * geo[9 + c]
+                value = map_optical_depth(x, maps, mi)[0]
+            tau[q * depth_n + k] = value
+
+
+@njit(**NJIT_INLINE)
+def volume_optical_depth(x, vols, vi):
+    """(tau, tau_lo, tau_hi) as map_optical_depth, from volume vi of ``vols`` (a records.LightVolumes):
+    trilinear, about 50 ns against the map's ~1 us inside a cloud. lo and hi are the least and greatest of
+    the four texel columns' depths at x's depth: along the light the depth only grows, and its linear
+    interpolation is second order, so the spread that says how far the estimate may be off is the sideways
+    one, as the map's."""
+    geo = vols.geo[vi]
+    res = vols.res[vi]
+    n_s = vols.depth_n[vi]
+    base = vols.base[vi]
+    u, v, s = _map_coordinates(x, geo)
+    w = s / geo[12]
+    k0 = min(max(int(np.floor(w)), 0), n_s - 2)
+    fw = min(max(w - k0, 0.0), 1.0)
+    i0 = int(np.floor(u))
+    j0 = int(np.floor(v))
+    fu = u - i0
+    fv = v - j0
+    tau = 0.0
+    lo = np.inf
+    hi = 0.0
+    for di in range(2):
+        i = min(max(i0 + di, 0), res - 1)
+        wi = fu if di == 1 else 1.0 - fu
+        for dj in range(2):
+            j = min(max(j0 + dj, 0), res - 1)
+            wj = fv if dj == 1 else 1.0 - fv
+            q = base + (i * res + j) * n_s + k0
+            tau_k = (1.0 - fw) * vols.tau[q] + fw * vols.tau[q + 1]
+            tau += wi * wj * tau_k
+            lo = min(lo, tau_k)
+            hi = max(hi, tau_k)
+    return tau, lo, hi

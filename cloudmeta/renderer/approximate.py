@@ -28,7 +28,7 @@ from ..errors import SceneError
 from ..kernels.multiple import render_paths
 from ..kernels.single import render_pixels
 from .pack import background_along, pixel_directions, single_octave
-from .tracking import path_settings, paths_grid, paths_maps
+from .tracking import path_settings, paths_grid, paths_volumes
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
 ERROR_PIXELS = 128
@@ -93,7 +93,7 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     single = records._replace(octaves=single_octave(), ambient=np.zeros(3), radiance=None, view_media=records.media)
     settings = path_settings(scene, paths, scene.render.max_order)
     grid = paths_grid(scene, records.media, settings)  # neither depends on the number of paths
-    maps = paths_maps(scene, packed, settings)
+    volumes = paths_volumes(scene, packed, settings)
     h, w = scene.image.height, scene.image.width
     exact = np.zeros((h, w, 4))
     nearest = np.full((h, w), np.inf)
@@ -111,7 +111,7 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     frac = cloud / tile.size
     while True:
         settings = settings._replace(paths=int(paths))
-        each_pixel(lambda i, j: render_paths(camera, single, quad, settings, grid, maps, i, j, j + 1, mean, stderr))
+        each_pixel(lambda i, j: render_paths(camera, single, quad, settings, grid, volumes, i, j, j + 1, mean, stderr))
         est = _estimate(exact[rows, cols], mean[rows, cols], stderr[rows, cols], approx, background, frac,
                         int(chosen.size), cloud, paths)
         resolved = 0.0 < est.rel_rmse < np.inf and est.stderr <= ERROR_PRECISION * est.rel_rmse

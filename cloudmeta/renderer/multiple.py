@@ -22,7 +22,7 @@ from ..errors import SceneError
 from ..kernels.multiple import render_paths
 from .bands import run_bands, tile_window
 from .pack import pack_scene
-from .tracking import path_settings, paths_grid, paths_maps
+from .tracking import path_settings, paths_grid, paths_volumes
 
 
 def check_multiple(scene):
@@ -49,13 +49,13 @@ def render_multiple(scene, paths=None, max_order=None, seed=0, progress=False, r
     camera, records, quad = packed.camera, packed.records, packed.quadrature
     settings = path_settings(scene, paths, max_order)
     grid = paths_grid(scene, records.media, settings)
-    maps = paths_maps(scene, packed, settings)
+    volumes = paths_volumes(scene, packed, settings)
     w, h = scene.image.width, scene.image.height
     mean = np.zeros((h, w, 3))
     stderr = np.zeros((h, w, 3))
     # bands write their own rows with their own work arrays, and every random number is keyed by the
     # pixel: the result depends neither on the threads nor on the tile
-    run_bands(lambda row0, p0, p1: render_paths(camera, records, quad, settings, grid, maps, row0, p0, p1, mean,
+    run_bands(lambda row0, p0, p1: render_paths(camera, records, quad, settings, grid, volumes, row0, p0, p1, mean,
                                                 stderr), window, w, progress)
     (r_lo, r_hi), (c_lo, c_hi) = window
     return mean[r_lo:r_hi, c_lo:c_hi], stderr[r_lo:r_hi, c_lo:c_hi]

@@ -17,9 +17,9 @@ import numba
 import numpy as np
 
 from ..kernels.kinds import DENSITY_MODES, LIGHTS, PHASES
-from ..kernels.records import (BVH, Camera, Lights, MapPieces, Media, Quadrature, SceneRecords, ShadowMaps,
-                               Surfaces)
-from ..kernels.shadowmap import trace_texel_chunk
+from ..kernels.records import (BVH, Camera, LightVolumes, Lights, MapPieces, Media, Quadrature, SceneRecords,
+                               ShadowMaps, Surfaces)
+from ..kernels.shadowmap import fill_volume_chunk, trace_texel_chunk
 from ..scene.atmosphere import sky_mean
 from ..scene.vocabulary import MAP_SHADOWS, SHADOW_MAP_RESOLUTION
 from .bands import n_chunks
@@ -188,6 +188,45 @@ def build_shadow_maps(lights, med, lo, hi, resolution, tol_t):
     cat = {name: np.ascontiguousarray(np.concatenate([getattr(a, name) for _, a in parts])) for name in MapPieces._fields}
     return ShadowMaps(map_of=map_of, geo=np.array(geos), res=np.full(len(geos), resolution, np.int64),
                       base=np.array(bases, np.int64), start=start.astype(np.int64), **cat)
+
+
+def no_light_volumes(n_lights) -> LightVolumes:
+    """No light volume (empty arrays of the volumes' dtypes)."""
+    return LightVolumes(map_of=np.full(n_lights, -1, np.int64), geo=np.zeros((0, 13)), res=np.zeros(0, np.int64),
+                        depth_n=np.zeros(0, np.int64), base=np.zeros(0, np.int64),
+                        tau=np.zeros(0, np.float32))
+
+
+def build_light_volumes(maps, max_resolution) -> LightVolumes:
+    """A light volume (records.LightVolumes) over each shadow map of ``maps``: the optical depth at the
+    texels' centres (at most max_resolution per side) every texel size along the light, read from the map
+    (kernels.shadowmap.fill_volume_chunk)."""
+    geos, bases, ress, depths, parts, offset = [], [], [], [], [], 0
+    for mi in range(len(maps.geo)):
+        res = min(int(maps.res[mi]), int(max_resolution))
+        geo = maps.geo[mi].copy()
+        geo[12] *= maps.res[mi] / res  # the same square, coarser texels
+        depth_n = res + 2  # depths 0 .. 2 radius (the map's square is the bounding sphere's), and one more
+        tau = np.empty(res * res * depth_n, np.float32)
+        chunks = n_chunks(res * res)
+
+        def chunk(ch, mi=mi, geo=geo, res=res, depth_n=depth_n, tau=tau, chunks=chunks):
+            fill_volume_chunk(maps, np.int64(mi), geo, np.int64(res), np.int64(depth_n), np.int64(ch),
+                              np.int64(chunks), tau)
+
+        with ThreadPoolExecutor(numba.get_num_threads()) as pool:  # nogil chunks, each its own texels
+            list(pool.map(chunk, range(chunks)))
+        geos.append(geo)
+        ress.append(res)
+        depths.append(depth_n)
+        bases.append(offset)
+        parts.append(tau)
+        offset += tau.size
+    if not geos:
+        return no_light_volumes(len(maps.map_of))
+    return LightVolumes(map_of=maps.map_of.copy(), geo=np.array(geos), res=np.array(ress, np.int64),
+                        depth_n=np.array(depths, np.int64), base=np.array(bases, np.int64),
+                        tau=np.ascontiguousarray(np.concatenate(parts)))
 
 
 def _map_geometry(l, centre, radius, resolution):

@@ -14,7 +14,7 @@ import numpy as np
 from ..kernels.grid import bin_balls
 from ..kernels.records import MajorantGrid, PathSettings
 from ..kernels.tracking import cell_bounds
-from .pack import build_shadow_maps, media_bbox, no_shadow_maps
+from .pack import build_light_volumes, build_shadow_maps, media_bbox, no_light_volumes
 
 #: Russian roulette from this vertex on (the first vertices carry most of the light: keep them all)
 RR_ORDER = 4
@@ -27,6 +27,8 @@ PAD = 1e-9
 #: texels per side of the shadow maps built for the paths alone: the control variate's variance was the same
 #: at 96, 192 and 384 texels on the cumulus (docs/multiple_scattering.md), and 384 took 0.34 s to build
 PATHS_MAP_RESOLUTION = 128
+#: texels per side of the light volumes, at most (128^2 x 130 float32 depths: 8.5 MB per light)
+VOLUME_RESOLUTION = 128
 
 
 def path_settings(scene, paths, max_order) -> PathSettings:
@@ -84,17 +86,18 @@ def paths_grid(scene, med, settings) -> MajorantGrid:
     return majorant_grid(scene, med) if tracks(settings) else no_grid(med)
 
 
-def paths_maps(scene, packed, settings):
-    """The shadow maps the tracked vertices read as the control variate of a directional light's
-    transmittance (kernels.multiple.light_transmittance): the render's own maps (``shadows: map`` or
-    ``hybrid``), else maps built here at ``render.shadow_map`` texels (PATHS_MAP_RESOLUTION by default);
-    none (every T_l tracked) where no path is tracked or no light is directional."""
+def paths_volumes(scene, packed, settings):
+    """The light volumes (records.LightVolumes) the tracked vertices read as the control variate of a
+    directional light's transmittance (kernels.multiple.light_transmittance), each sampled from a shadow map:
+    the render's own (``shadows: map`` or ``hybrid``), else one built here at ``render.shadow_map`` texels
+    (PATHS_MAP_RESOLUTION by default); none (every T_l tracked) where no path is tracked or no light is
+    directional."""
     lights = packed.records.lights
     if not tracks(settings) or not scene.media:
-        return no_shadow_maps(len(scene.lights))
-    if lights.maps is not None and np.any(lights.maps.map_of >= 0):
-        return lights.maps
-    lo, hi = media_bbox(scene)
-    maps = build_shadow_maps(scene.lights, packed.records.media, lo, hi,
-                             scene.render.shadow_map or PATHS_MAP_RESOLUTION, packed.quadrature.tol_t)
-    return no_shadow_maps(len(scene.lights)) if maps is None else maps
+        return no_light_volumes(len(scene.lights))
+    maps = lights.maps
+    if maps is None or not np.any(maps.map_of >= 0):
+        lo, hi = media_bbox(scene)
+        maps = build_shadow_maps(scene.lights, packed.records.media, lo, hi,
+                                 scene.render.shadow_map or PATHS_MAP_RESOLUTION, packed.quadrature.tol_t)
+    return no_light_volumes(len(scene.lights)) if maps is None else build_light_volumes(maps, VOLUME_RESOLUTION)

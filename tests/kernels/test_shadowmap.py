@@ -9,7 +9,7 @@ import numba
 import numpy as np
 
 import cloudmeta as cm
-from cloudmeta.kernels.shadowmap import map_optical_depth
+from cloudmeta.kernels.shadowmap import map_optical_depth, volume_optical_depth
 from cloudmeta.renderer.frame import render_frame
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -62,6 +62,53 @@ def test_bilinear_lookup_lies_within_its_texels_bounds():
     bil = np.array([map_optical_depth(p, maps, maps.map_of[0]) for p in points])
     assert np.count_nonzero(bil[:, 2] > bil[:, 1]) > 50  # the points do sample the shadow's edges
     assert np.all((bil[:, 1] <= bil[:, 0] + 1e-12) & (bil[:, 0] <= bil[:, 2] + 1e-12))
+
+
+def volume_points(maps, n, seed):
+    g = maps.geo[maps.map_of[0]]
+    origin, e1, e2, ray = g[:3], g[3:6], g[6:9], g[9:12]
+    side = g[12] * maps.res[maps.map_of[0]]
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(0.2, 0.8, (n, 3)) * side
+    return origin + u[:, :1] * e1 + u[:, 1:2] * e2 + u[:, 2:] * ray
+
+
+def test_volume_on_the_maps_texels_is_the_map_on_its_lattice():
+    """A light volume at the map's resolution holds the map's exact depths at texel centres every texel size
+    along the light; between them it is trilinear, and its lo / hi are the four columns' extremes."""
+    _, maps = cumulus_map(48)
+    vols = pack_module.build_light_volumes(maps, 48)
+    g = vols.geo[0]
+    np.testing.assert_array_equal(g, maps.geo[0])
+    origin, e1, e2, ray, size = g[:3], g[3:6], g[6:9], g[9:12], g[12]
+    rng = np.random.default_rng(4)
+    ijk = np.column_stack([rng.integers(10, 38, (300, 2)), rng.integers(0, 49, 300)])
+    points = origin + (ijk[:, :1] + 0.5) * size * e1 + (ijk[:, 1:2] + 0.5) * size * e2 + ijk[:, 2:] * size * ray
+    on_map = np.array([map_optical_depth(p, maps, 0)[0] for p in points])
+    on_volume = np.array([volume_optical_depth(p, vols, 0) for p in points])
+    assert np.count_nonzero(on_map > 0.1) > 50
+    np.testing.assert_allclose(on_volume[:, 0], on_map, rtol=1e-6, atol=1e-6)  # float32 storage
+    points = volume_points(maps, 500, 6)
+    on_map = np.array([map_optical_depth(p, maps, 0)[0] for p in points])
+    on_volume = np.array([volume_optical_depth(p, vols, 0) for p in points])
+    assert np.all((on_volume[:, 1] <= on_volume[:, 0] + 1e-6) & (on_volume[:, 0] <= on_volume[:, 2] + 1e-6))
+    inside = on_map > 0.05
+    assert np.count_nonzero(inside) > 50
+    # the depth is only interpolated along the light as well: close to the map's, not equal
+    assert np.median(np.abs(on_volume[inside, 0] - on_map[inside]) / on_map[inside]) < 0.05
+
+
+def test_coarser_volume_reads_the_map_bilinearly():
+    _, maps = cumulus_map(64)
+    vols = pack_module.build_light_volumes(maps, 32)
+    assert vols.res[0] == 32 and vols.depth_n[0] == 34
+    np.testing.assert_allclose(vols.geo[0, 12], 2 * maps.geo[0, 12])
+    points = volume_points(maps, 400, 7)
+    on_map = np.array([map_optical_depth(p, maps, 0)[0] for p in points])
+    on_volume = np.array([volume_optical_depth(p, vols, 0)[0] for p in points])
+    inside = on_map > 0.05
+    assert np.count_nonzero(inside) > 50
+    assert np.median(np.abs(on_volume[inside] - on_map[inside]) / on_map[inside]) < 0.15
 
 
 def test_single_pass_overflow_gives_the_same_map(monkeypatch):

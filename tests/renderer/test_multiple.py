@@ -11,7 +11,8 @@ from cloudmeta.errors import SceneError
 from cloudmeta.kernels.bernstein import bernstein_cumulative
 from cloudmeta.kernels.kinds import DOUBLE_HG, HG, ISOTROPIC, RAYLEIGH
 from cloudmeta.kernels.optics import phase
-from cloudmeta.kernels.sampling import free_flight, owen_scramble, sample_phase_cos, sobol4, turn, uniform, SOBOL_V
+from cloudmeta.kernels.sampling import (SOBOL_V, _sobol32, free_flight, owen_scramble, sample_phase_cos, sobol4, turn,
+                                        uniform)
 from cloudmeta.renderer.multiple import render_multiple
 
 FURNACE = """
@@ -177,6 +178,19 @@ def test_sobol_direction_numbers_match_scipy():
         n = 2 ** m
         assert np.array_equal(np.sort(mine[:n], axis=0), np.sort(ref[:n], axis=0))
         assert np.array_equal(mine[:n][np.lexsort(mine[:n].T)], ref[:n][np.lexsort(ref[:n].T)])
+
+
+def test_sobol_byte_tables_match_the_direction_numbers():
+    """The kernel's Sobol point (four byte lookups) is the XOR of the direction numbers over the index's set
+    bits, for indices that use all 32 bits (the paths' shuffled indices do)."""
+    rng = np.random.default_rng(11)
+    for index in rng.integers(0, 2 ** 32, 200, dtype=np.uint64):
+        for d in range(4):
+            v = 0
+            for k in range(32):
+                if int(index) >> k & 1:
+                    v ^= int(SOBOL_V[d, k])
+            assert int(_sobol32(np.uint64(index), d)) == v
 
 
 def test_owen_scramble_is_a_nested_permutation():
