@@ -151,7 +151,7 @@ StepState = namedtuple("StepState", ["k", "s_prev", "u_prev", "j_max", "scratch"
 #: the path's index in it
 PathKey = namedtuple("PathKey", ["seed", "pixel", "path"])
 
-#: a path's four 3-vectors of work (kernels.multiple.path_radiance): the vertex o, the direction d, the
+#: a path's four 3-vectors of work (kernels.multiple.ray_paths): the vertex o, the direction d, the
 #: sampled next direction d_new, the light scattered at a vertex
 PathVectors = namedtuple("PathVectors", ["o", "d", "d_new", "light"])
 
