@@ -53,15 +53,12 @@ def _sobol_bytes(v):
     that Sobol's point for an index is the XOR of four table entries, one per byte of the index (the same
     point as the bit-by-bit loop, without its 32 unpredictable branches)."""
     dims, bits = v.shape
+    byte = np.arange(256, dtype=np.uint64)
     table = np.zeros((dims, bits // 8, 256), dtype=np.uint64)
-    for dim in range(dims):
-        for b in range(bits // 8):
-            for byte in range(256):
-                acc = 0
-                for i in range(8):
-                    if byte >> i & 1:
-                        acc ^= int(v[dim, 8 * b + i])
-                table[dim, b, byte] = acc
+    for b in range(bits // 8):
+        for i in range(8):
+            has_bit = ((byte >> np.uint64(i)) & np.uint64(1)).astype(bool)
+            table[:, b, has_bit] ^= v[:, 8 * b + i][:, None]
     return table
 
 

@@ -138,20 +138,17 @@ def map_optical_depth(x, maps, mi):
     u, v, s = _map_coordinates(x, maps.geo[mi])
     i0 = int(np.floor(u))
     j0 = int(np.floor(v))
-    fu = u - i0
-    fv = v - j0
-    tau = 0.0
-    lo = np.inf
-    hi = 0.0
-    for di in range(2):
-        wi = fu if di == 1 else 1.0 - fu
-        for dj in range(2):
-            wj = fv if dj == 1 else 1.0 - fv
-            tau_k = _texel_depth(maps, res, base, i0 + di, j0 + dj, s)
-            tau += wi * wj * tau_k
-            lo = min(lo, tau_k)
-            hi = max(hi, tau_k)
-    return tau, lo, hi
+    return _bilinear(_texel_depth(maps, res, base, i0, j0, s), _texel_depth(maps, res, base, i0, j0 + 1, s),
+                     _texel_depth(maps, res, base, i0 + 1, j0, s), _texel_depth(maps, res, base, i0 + 1, j0 + 1, s),
+                     u - i0, v - j0)
+
+
+@njit(**NJIT_INLINE)
+def _bilinear(t00, t01, t10, t11, fu, fv):
+    """(tau, lo, hi): the bilinear blend of the depths at the four corners (t_ij at texel (i0 + i, j0 + j)) at
+    fractions fu, fv past corner 00, and the least and greatest of the four."""
+    tau = ((1.0 - fu) * (1.0 - fv) * t00 + (1.0 - fu) * fv * t01 + fu * (1.0 - fv) * t10 + fu * fv * t11)
+    return tau, min(t00, t01, t10, t11), max(t00, t01, t10, t11)
 
 
 @njit(**NJIT)
@@ -182,7 +179,7 @@ def fill_volume_chunk(maps, mi, geo, res, depth_n, chunk, n_chunks, tau):
 @njit(**NJIT_INLINE)
 def volume_optical_depth(x, vols, vi):
     """(tau, tau_lo, tau_hi) as map_optical_depth, from volume vi of ``vols`` (a records.LightVolumes):
-    trilinear, about 50 ns against the map's ~1 us inside a cloud. lo and hi are the least and greatest of
+    trilinear, 23-40 ns against the map's ~1 us inside a cloud. lo and hi are the least and greatest of
     the four texel columns' depths at x's depth: along the light the depth only grows, and its linear
     interpolation is second order, so the spread that says how far the estimate may be off is the sideways
     one, as the map's."""
@@ -196,20 +193,17 @@ def volume_optical_depth(x, vols, vi):
     fw = min(max(w - k0, 0.0), 1.0)
     i0 = int(np.floor(u))
     j0 = int(np.floor(v))
-    fu = u - i0
-    fv = v - j0
-    tau = 0.0
-    lo = np.inf
-    hi = 0.0
-    for di in range(2):
-        i = min(max(i0 + di, 0), res - 1)
-        wi = fu if di == 1 else 1.0 - fu
-        for dj in range(2):
-            j = min(max(j0 + dj, 0), res - 1)
-            wj = fv if dj == 1 else 1.0 - fv
-            q = base + (i * res + j) * n_s + k0
-            tau_k = (1.0 - fw) * vols.tau[q] + fw * vols.tau[q + 1]
-            tau += wi * wj * tau_k
-            lo = min(lo, tau_k)
-            hi = max(hi, tau_k)
-    return tau, lo, hi
+    return _bilinear(_column_depth(vols, res, n_s, base, i0, j0, k0, fw),
+                     _column_depth(vols, res, n_s, base, i0, j0 + 1, k0, fw),
+                     _column_depth(vols, res, n_s, base, i0 + 1, j0, k0, fw),
+                     _column_depth(vols, res, n_s, base, i0 + 1, j0 + 1, k0, fw), u - i0, v - j0)
+
+
+@njit(**NJIT_INLINE)
+def _column_depth(vols, res, n_s, base, i, j, k0, fw):
+    """The depth on texel (i, j)'s column of a light volume (clamped to it), fw of the way from sample k0 to
+    k0 + 1."""
+    i = min(max(i, 0), res - 1)
+    j = min(max(j, 0), res - 1)
+    q = base + (i * res + j) * n_s + k0
+    return (1.0 - fw) * vols.tau[q] + fw * vols.tau[q + 1]

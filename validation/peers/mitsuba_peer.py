@@ -317,9 +317,13 @@ def equal_time(mi, scene, ms, budget, norm, cm_cap, mi_cap, threads=2):
     """Two seeds each at about ``budget`` seconds, alternated. Returns (the row of figures, the images).
     The sample counts are calibrated on CPU time / threads (steadier than wall time on a shared machine);
     norm None: the mean of the four renders."""
+    # from 4 paths per camera ray: below one, more paths also trace more camera segments, and with the
+    # deterministic part's fixed cost the slope's floor in calibrate overstated a path's cost 3-10x (runs 1-8
+    # rendered ~1.4-2 s where they aimed at 6 s)
+    cloudmeta_render(with_settings(scene, ms_spp=1), 77)  # untimed: the first render loads the kernels
     cm_n, cm_per, cm_fixed = calibrate(
         lambda n: cloudmeta_render(with_settings(scene, ms_spp=n), 77)[2] / threads,
-        budget, 4, cm_cap)
+        budget, 4 * max(1, scene.image.spp), cm_cap)
     mi_n, mi_per, mi_fixed = calibrate(lambda n: mitsuba_render(mi, ms, n, 77)[2] / threads, budget, 64, mi_cap)
     cm_scene = with_settings(scene, ms_spp=cm_n)
     imgs = {"cm": [], "mi": []}
