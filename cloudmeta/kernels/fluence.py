@@ -76,12 +76,12 @@ def deposited_phase(phases, peak, m, cos_theta):
 
 
 @njit(**NJIT)
-def deposit(o, w, t_max, rg, coef, rgb, med, walk):
+def deposit(o, w, t_max, rg, coef, rgb, med):
     """coef[c, col, m] += rgb[col] p_m(w . rg.towards[c]) times the length of o + t w, t in [0, t_max], inside
     cell c of the grid rg, for every cell the segment crosses and every medium m."""
-    t, t_end = walk_start(o, w, t_max, rg, walk)
+    t, t_end, cells = walk_start(o, w, t_max, rg)
     while t < t_end:
-        c, t_out = walk_cell(rg, walk)
+        c, t_out = walk_cell(rg, cells)
         t_out = min(t_out, t_end)
         length = t_out - t
         if length > 0.0:
@@ -92,7 +92,10 @@ def deposit(o, w, t_max, rg, coef, rgb, med, walk):
                 for col in range(3):
                     coef[c, col, m] += rgb[col] * a
         t = t_out
-        if t >= t_end or not walk_advance(rg, walk):
+        if t >= t_end:
+            break
+        inside, cells = walk_advance(rg, cells)
+        if not inside:
             break
 
 
@@ -228,7 +231,6 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
     min(1, weight)."""
     n_med = med.start.shape[0] - 1
     track = alloc_track_work(n_med)
-    walk = alloc_track_work(n_med)
     o = np.empty(3)
     w = np.empty(3)
     w_new = np.empty(3)
@@ -254,7 +256,7 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
             else:
                 t, sigma_t, sigma_s = delta_flight(o, w, np.inf, mgrid, med, key, vertex, track)
             if deposits and where == FLIGHTS:
-                deposit(o, w, t, rg, coef, power, med, walk)
+                deposit(o, w, t, rg, coef, power, med)
             if t == np.inf or sigma_t <= 0.0:
                 break
             scatterings += 1

@@ -32,7 +32,7 @@ from .config import NJIT, NJIT_INLINE, OVERLOAD
 from .density import rho_value
 from .grid import cell_index
 from .metaball import ball_field, falloff
-from .records import TrackWork
+from .records import TrackWork, Walk
 from .sampling import uniform
 
 #: the first random dimension of a delta-tracked flight; of the transmittance towards light li
@@ -54,8 +54,7 @@ F_MARGIN = 1e-9
 def alloc_track_work(n_media):
     """One thread's records.TrackWork."""
     m = max(n_media, 1)
-    return TrackWork(sigma=np.zeros(m), at_vertex=np.zeros(m), x=np.zeros(3), cell=np.zeros(3, np.int64),
-                     step=np.zeros(3, np.int64), t_next=np.zeros(3), t_delta=np.zeros(3))
+    return TrackWork(sigma=np.zeros(m), at_vertex=np.zeros(m), x=np.zeros(3))
 
 
 @njit(**NJIT_INLINE)
@@ -181,9 +180,21 @@ def point_sigma(x, grid, med, c, sigma):
 
 
 @njit(**NJIT_INLINE)
-def walk_start(o, d, t_max, grid, w):
-    """Clip o + t d, t in [0, t_max], to the grid's box and put the walk in the cell where it enters.
-    Returns (t_enter, t_exit); the ray misses the box when t_enter >= t_exit."""
+def _axis_walk(o, d, grid, t0, a):
+    """(cell, step, where the ray leaves the cell across axis a's walls, the distance between them) of the
+    walk along axis a, from the point at t0."""
+    i = cell_index(o[a] + t0 * d[a], grid.origin[a], grid.size, grid.dims[a])
+    if d[a] > 0.0:
+        return i, 1, (grid.origin[a] + (i + 1) * grid.size - o[a]) / d[a], grid.size / d[a]
+    if d[a] < 0.0:
+        return i, -1, (grid.origin[a] + i * grid.size - o[a]) / d[a], -grid.size / d[a]
+    return i, 0, np.inf, np.inf
+
+
+@njit(**NJIT_INLINE)
+def walk_start(o, d, t_max, grid):
+    """Clip o + t d, t in [0, t_max], to the grid's box and start the walk in the cell where it enters.
+    Returns (t_enter, t_exit, records.Walk); the ray misses the box when t_enter >= t_exit."""
     t0 = 0.0
     t1 = t_max
     for a in range(3):
@@ -195,48 +206,47 @@ def walk_start(o, d, t_max, grid, w):
             t0 = max(t0, min(ta, tb))
             t1 = min(t1, max(ta, tb))
         elif o[a] < lo or o[a] > hi:
-            return 0.0, -1.0
+            t0 = 0.0
+            t1 = -1.0
     if t0 >= t1:
-        return t0, t1
-    for a in range(3):
-        i = cell_index(o[a] + t0 * d[a], grid.origin[a], grid.size, grid.dims[a])
-        w.cell[a] = i
-        if d[a] > 0.0:
-            w.step[a] = 1
-            w.t_next[a] = (grid.origin[a] + (i + 1) * grid.size - o[a]) / d[a]
-            w.t_delta[a] = grid.size / d[a]
-        elif d[a] < 0.0:
-            w.step[a] = -1
-            w.t_next[a] = (grid.origin[a] + i * grid.size - o[a]) / d[a]
-            w.t_delta[a] = -grid.size / d[a]
-        else:
-            w.step[a] = 0
-            w.t_next[a] = np.inf
-            w.t_delta[a] = np.inf
-    return t0, t1
+        return t0, t1, Walk(0, 0, 0, 0, 0, 0, np.inf, np.inf, np.inf, np.inf, np.inf, np.inf)
+    ix, sx, nx, dx = _axis_walk(o, d, grid, t0, 0)
+    iy, sy, ny, dy = _axis_walk(o, d, grid, t0, 1)
+    iz, sz, nz, dz = _axis_walk(o, d, grid, t0, 2)
+    return t0, t1, Walk(ix, iy, iz, sx, sy, sz, nx, ny, nz, dx, dy, dz)
 
 
 @njit(**NJIT_INLINE)
-def walk_cell(grid, w):
+def walk_cell(grid, walk):
     """The walk's current cell (flat index) and where the ray leaves it."""
-    c = w.cell[0] + grid.dims[0] * (w.cell[1] + grid.dims[1] * w.cell[2])
-    return c, min(w.t_next[0], w.t_next[1], w.t_next[2])
+    c = walk.ix + grid.dims[0] * (walk.iy + grid.dims[1] * walk.iz)
+    return c, min(walk.nx, walk.ny, walk.nz)
 
 
 @njit(**NJIT_INLINE)
-def walk_advance(grid, w):
-    """Step into the next cell along the ray; False once the ray leaves the grid."""
+def walk_advance(grid, walk):
+    """(whether the ray is still in the grid, the walk) after stepping into the next cell along the ray."""
+    ix, iy, iz, sx, sy, sz, nx, ny, nz, dx, dy, dz = walk
     a = 0
-    if w.t_next[1] < w.t_next[a]:
+    best = nx
+    if ny < best:
         a = 1
-    if w.t_next[2] < w.t_next[a]:
+        best = ny
+    if nz < best:
         a = 2
-    i = w.cell[a] + w.step[a]
-    if i < 0 or i >= grid.dims[a]:
-        return False
-    w.cell[a] = i
-    w.t_next[a] += w.t_delta[a]
-    return True
+    if a == 0:
+        ix += sx
+        nx += dx
+        inside = 0 <= ix < grid.dims[0]
+    elif a == 1:
+        iy += sy
+        ny += dy
+        inside = 0 <= iy < grid.dims[1]
+    else:
+        iz += sz
+        nz += dz
+        inside = 0 <= iz < grid.dims[2]
+    return inside, Walk(ix, iy, iz, sx, sy, sz, nx, ny, nz, dx, dy, dz)
 
 
 @njit(**NJIT_INLINE)
@@ -283,12 +293,12 @@ def delta_flight(o, d, t_max, grid, med, key, vertex, w, tally=None):
     (t, sigma_t, sigma_s there; w.sigma each medium's sigma_t), or (inf, 0, 0) when the flight gets through.
     Its distribution is that of the exact optical depth's inversion: t with density sigma_t(t) e^-tau(t).
     ``tally``: see tentative_collision (the grid method's deposits; compiled to nothing without one)."""
-    t, t_end = walk_start(o, d, t_max, grid, w)
+    t, t_end, walk = walk_start(o, d, t_max, grid)
     dim = np.int64(DIM_FLIGHT)
     tau = _exponential(key, vertex, dim)
     dim += 1
     while t < t_end:
-        c, t_out = walk_cell(grid, w)
+        c, t_out = walk_cell(grid, walk)
         t_out = min(t_out, t_end)
         mu = grid.sigma_max[c]
         if mu > 0.0:
@@ -306,7 +316,10 @@ def delta_flight(o, d, t_max, grid, med, key, vertex, w, tally=None):
                 dim += 1
             tau = max(tau - mu * (t_out - t), 0.0)
         t = t_out
-        if t >= t_end or not walk_advance(grid, w):
+        if t >= t_end:
+            break
+        inside, walk = walk_advance(grid, walk)
+        if not inside:
             break
     return np.inf, 0.0, 0.0
 
@@ -316,12 +329,12 @@ def tracked_transmittance(o, d, t_max, grid, med, key, vertex, dim0, w):
     """An unbiased estimate of e^-tau along o + t d, t in [0, t_max]: residual ratio tracking, with the cells'
     sigma_min as the control (its depth is exact) and sigma_max - sigma_min as the residual's majorant;
     Russian roulette below ROULETTE_BELOW. dim0: the first random dimension (DIM_LIGHT ...)."""
-    t, t_end = walk_start(o, d, t_max, grid, w)
+    t, t_end, walk = walk_start(o, d, t_max, grid)
     dim = dim0
     ratio = 1.0
     tau_c = 0.0
     while t < t_end:
-        c, t_out = walk_cell(grid, w)
+        c, t_out = walk_cell(grid, walk)
         t_out = min(t_out, t_end)
         mu_c = grid.sigma_min[c]
         mu_r = grid.sigma_max[c] - mu_c
@@ -347,6 +360,9 @@ def tracked_transmittance(o, d, t_max, grid, med, key, vertex, dim0, w):
                     dim += 1
                     ratio *= 2.0
         t = t_out
-        if t >= t_end or not walk_advance(grid, w):
+        if t >= t_end:
+            break
+        inside, walk = walk_advance(grid, walk)
+        if not inside:
             break
     return ratio * math.exp(-tau_c)

@@ -6,7 +6,6 @@ import numpy as np
 from cloudmeta.kernels.fluence import deposit
 from cloudmeta.kernels.optics import phase
 from cloudmeta.kernels.records import RadianceGrid
-from cloudmeta.kernels.tracking import alloc_track_work
 
 
 #: the only field of records.Media that deposit reads: each medium's phase row (kind, g1, g2, w)
@@ -23,7 +22,7 @@ def test_deposit_is_the_length_in_each_cell_times_the_phase_towards_the_camera()
     o = np.array([-1.0, 0.5, 0.5])
     d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
     med = _Media(np.array([(1, 0.6, 0, 0), (0, 0, 0, 0)], np.float64))
-    deposit(o, d, np.inf, grid, coef, np.array([1.0, 2.0, 3.0]), med, alloc_track_work(1))
+    deposit(o, d, np.inf, grid, coef, np.array([1.0, 2.0, 3.0]), med)
     # the ray enters at x = 0 (y = 1.5) and leaves at y = 3 (x = 2.5): length 1.5 sqrt(2) in the box, at 90
     # degrees to the camera direction
     p_hg = phase(1, 0.6, 0.0, 0.0, 0.0)
@@ -34,7 +33,7 @@ def test_deposit_is_the_length_in_each_cell_times_the_phase_towards_the_camera()
     np.testing.assert_allclose(coef[0 + 4 * 1, 0, 1], 0.5 * np.sqrt(2) / (4 * np.pi))  # cell (0, 1, 0): x 0 .. 0.5
     coef[:] = 0
     # t_max: the ray enters the box at t = sqrt(2) and stops 1.0 further on
-    deposit(o, d, np.sqrt(2) + 1.0, grid, coef, np.array([1.0, 2.0, 3.0]), med, alloc_track_work(1))
+    deposit(o, d, np.sqrt(2) + 1.0, grid, coef, np.array([1.0, 2.0, 3.0]), med)
     np.testing.assert_allclose(coef[:, 0, 1].sum(), 1.0 / (4 * np.pi))
 
 
@@ -51,5 +50,5 @@ def test_deposit_clamps_the_forward_peak_that_the_camera_ray_carries():
         coef = np.zeros((1, 3, 1))
         a = np.radians(angle)
         d = np.array([np.cos(a), np.sin(a), 0.0])
-        deposit(np.array([0.5, 0.5, 0.5]), d, 0.1, grid, coef, np.ones(3), med, alloc_track_work(1))
+        deposit(np.array([0.5, 0.5, 0.5]), d, 0.1, grid, coef, np.ones(3), med)
         np.testing.assert_allclose(coef[0, 0, 0], 0.1 * expected, rtol=1e-12)

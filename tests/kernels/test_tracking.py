@@ -96,14 +96,16 @@ def test_bounds_hold_on_random_points(spec):
 
 @njit
 def _walk_cells(o, d, t_max, grid):
-    w = alloc_track_work(1)
     out = []
-    t, t_end = walk_start(o, d, t_max, grid, w)
+    t, t_end, walk = walk_start(o, d, t_max, grid)
     while t < t_end:
-        c, t_out = walk_cell(grid, w)
+        c, t_out = walk_cell(grid, walk)
         out.append((c, t, min(t_out, t_end)))
         t = t_out
-        if t >= t_end or not walk_advance(grid, w):
+        if t >= t_end:
+            break
+        inside, walk = walk_advance(grid, walk)
+        if not inside:
             break
     return out
 
