@@ -161,17 +161,19 @@ def fill_volume_chunk(maps, mi, geo, res, depth_n, chunk, n_chunks, tau):
     n = res * res
     same = maps.res[mi] == res
     base = maps.base[mi]
+    o = np.empty(3)
     x = np.empty(3)
     for q in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
         i = q // res
         j = q % res
+        _texel_origin(geo, i, j, o)
         for k in range(depth_n):
             s = k * geo[12]
             if same:
                 value = _texel_depth(maps, res, base, i, j, s)
             else:
                 for c in range(3):
-                    x[c] = geo[c] + (i + 0.5) * geo[12] * geo[3 + c] + (j + 0.5) * geo[12] * geo[6 + c] + s * geo[9 + c]
+                    x[c] = o[c] + s * geo[9 + c]
                 value = map_optical_depth(x, maps, mi)[0]
             tau[q * depth_n + k] = value
 
