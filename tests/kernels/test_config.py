@@ -27,6 +27,55 @@ def test_threading_layer_is_workqueue_unless_asked_otherwise():
     assert numba.config.THREADING_LAYER == expected
 
 
+# --- reference counts: numba's runtime helpers inlinable (config._inline_reference_counts) ------------------
+
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+_RUNTIME = """
+import os, re, sys
+first = os.environ.get("FIRST") == "numba"
+if first:  # a numba function compiled before cloudmeta is imported: the runtime is built already
+    from numba import njit
+    njit(lambda x: x + 1)(1)
+from cloudmeta.kernels import config
+import numpy as np
+from numba import njit
+from numba.core.runtime import nrt
+assert njit(lambda a: a.sum())(np.ones(3)) == 3.0
+ir = nrt.rtsys._library.get_llvm_str()
+groups = dict(re.findall(r"^attributes (#[0-9]+) = [{] (.*) [}]$", ir, re.M))
+noinline = []
+for name in ("NRT_incref", "NRT_decref"):
+    line = re.search(r"^define .*@" + name + r"[(].*$", ir, re.M).group(0)
+    attrs = " ".join(groups.get(g, "") for g in re.findall(r"#[0-9]+", line)) + line
+    noinline.append("noinline" in attrs)
+print(config.INLINE_REFCOUNTS, noinline[0], noinline[1])
+"""
+
+
+def _runtime(**env):
+    run = subprocess.run([sys.executable, "-c", _RUNTIME], capture_output=True, text=True, check=True,
+                         env={**os.environ, **env})
+    return run.stdout.split()
+
+
+def test_reference_counts_are_inlinable_when_cloudmeta_comes_first():
+    assert _runtime() == ["True", "False", "False"]
+
+
+def test_reference_counts_stay_calls_when_asked_or_too_late():
+    assert _runtime(CLOUDMETA_NRT_INLINE="0") == ["False", "True", "True"]
+    assert _runtime(FIRST="numba") == ["False", "True", "True"]
+
+
+def test_the_cache_folder_depends_on_how_counts_compile(monkeypatch):
+    monkeypatch.setattr(config, "INLINE_REFCOUNTS", True)
+    inlined = config._kernel_source_hash()
+    monkeypatch.setattr(config, "INLINE_REFCOUNTS", False)
+    assert config._kernel_source_hash() != inlined
+
+
 # --- the kernel cache's faults (issue #27): in process, with a small function given the kernels' cache ------
 
 import pickle  # noqa: E402
