@@ -33,11 +33,14 @@ numba counts references to every array a kernel binds, with calls to its runtime
 ``NRT_decref``, which it marks ``noinline`` so that its reference-count pruning can find them. The hot
 loops read borrowed records (kernels.borrow: arrays whose MemInfo is null), so each of those calls only
 tests a null pointer; but a call still clobbers the caller's registers, and an inlined helper that takes
-the scene's records binds a hundred arrays or more. On the multiple-scattering paths that was about 1 us
-of a 1.3 us vertex, and a path that did nothing at all cost 1.3 us (docs/performance_notes.md §2g). cloudmeta
+the scene's records binds a hundred arrays or more. On the multiple-scattering paths a path that did
+nothing at all cost 1.3 us, and a vertex 2-4 us where its work alone took 1.2 us in a harness
+(docs/performance_notes.md §2g). cloudmeta
 drops ``noinline`` from the two functions (``_inline_reference_counts``), so that LLVM inlines them and
-the null test becomes one compare and branch: single scattering 1.26x and multiple scattering 1.4-1.6x
-faster, images bit-identical. Owned arrays are counted as before, with the same atomic operations; only
+the null test becomes one compare and branch; NRT_decref keeps the rest of its body (the atomic decrement
+and the destructor) in a function of its own, called only for an owned array, so that each inlined copy
+stays small (``_split_slow_path``). Single scattering 1.3x and multiple scattering 1.4-1.6x faster, images
+bit-identical. Owned arrays are counted as before, with the same atomic operations; only
 numba's pruning of counts, which runs after inlining, then finds fewer pairs to remove. The runtime's
 functions are built once per process, so this applies only where cloudmeta is imported before the process
 compiles any numba function, and to all numba code compiled after (it changes speed, not results).
@@ -323,10 +326,38 @@ def _inline_reference_counts():
 
         def inlinable(module, atomic, _original=original, _name=name):
             _original(module, atomic)
-            module.get_global(_name).attributes.discard("noinline")
+            fn = module.get_global(_name)
+            fn.attributes.discard("noinline")
+            if _name == "NRT_decref":
+                _split_slow_path(module, fn)
         inlinable.numba = original
         setattr(nrtdynmod, define, inlinable)
     return True
+
+
+def _split_slow_path(module, fn):
+    """NRT_decref as a null test that LLVM inlines, and a call to the rest of numba's body (the atomic
+    decrement and the destructor) kept out of line: every inlined copy is a compare and a call, not the whole
+    body (the compile time that inlining adds). Where llvmlite's IR objects do not allow it, fn stays whole."""
+    from llvmlite import ir
+    try:
+        slow = ir.Function(module, fn.function_type, "cloudmeta_NRT_decref_slow")
+        slow.attributes.add("noinline")
+        for block in fn.blocks:
+            block.parent = slow
+            for instruction in block.instructions:
+                instruction.replace_usage(fn.args[0], slow.args[0])
+        slow.blocks = fn.blocks
+        fn.blocks = []
+        builder = ir.IRBuilder(fn.append_basic_block())
+        ptr = fn.args[0]
+        is_null = builder.icmp_unsigned("==", ptr, ir.Constant(ptr.type, None))
+        with builder.if_then(is_null, likely=False):
+            builder.ret_void()
+        builder.call(slow, [ptr])
+        builder.ret_void()
+    except (AttributeError, TypeError, ValueError):
+        pass
 
 
 _prefer_workqueue()

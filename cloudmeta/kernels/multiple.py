@@ -395,11 +395,16 @@ def render_paths(camera, scene, quad, settings, grid, volumes, row0, p0, p1, mea
     quad = borrow(quad)
     grid = borrow(grid)
     volumes = borrow(volumes)
-    vectors = PathVectors(np.empty(3), np.empty(3), np.empty(3), np.empty(3))
-    d = np.empty(3)
-    est = np.empty(3)
-    acc = np.empty(3)
-    acc2 = np.empty(3)
+    # the path's small vectors too: owned, each vertex's helpers counted them with atomic operations
+    vectors_own = PathVectors(np.empty(3), np.empty(3), np.empty(3), np.empty(3))
+    d_own = np.empty(3)  # the camera ray's direction, a path's estimate, the sums of the estimates and squares
+    est_own = np.empty(3)
+    sums_own = np.empty(6)
+    vectors = borrow(vectors_own)
+    d = borrow(d_own)
+    est = borrow(est_own)
+    acc = borrow(sums_own[:3])
+    acc2 = borrow(sums_own[3:])
     for p in range(p0, p1):
         i = row0 + p // width
         j = p % width
@@ -422,6 +427,10 @@ def render_paths(camera, scene, quad, settings, grid, volumes, row0, p0, p1, mea
     release(own)
     release(camera_own)
     release_track(track_own)
+    vectors_own.o[0] += 0.0  # the last uses of the borrowed vectors' owners (kernels.borrow.release)
+    d_own[0] += 0.0
+    est_own[0] += 0.0
+    sums_own[0] += 0.0
 
 
 @njit(**NJIT)

@@ -23,9 +23,12 @@ multiple mode).
 2. Voxel bias: Mitsuba's high-spp mean at each grid size against cloudmeta's converged image (relative
    RMSE of the difference, normalised by the mean pixel value, minus what the noise of both explains).
 3. Equal time: each renderer gets the samples that take about ``--budget`` seconds of CPU time per thread
-   (on an idle machine its wall time; on a shared one CPU time is the steadier clock); two seeds each,
-   runs alternated (cloudmeta seed 0, Mitsuba seed 0, cloudmeta seed 1, Mitsuba seed 1); noise = RMSE of
-   the difference of the two seeds / sqrt 2, relative = noise / mean pixel value of the converged image;
+   (on an idle machine its wall time; on a shared one CPU time is the steadier clock; the count from two
+   short renders, then corrected once by a render at that count, since a render's cost per sample need
+   not be the same at 4 paths per camera ray as at 200); ``--seeds`` seeds each (4 by default),
+   runs alternated (cloudmeta seed 0, Mitsuba seed 0, cloudmeta seed 1, ...); noise = the RMS over pixels
+   of the seeds' standard deviation (for two seeds, the RMSE of their difference / sqrt 2), relative =
+   noise / mean pixel value of the converged image;
    noise scaled to equal time with noise^2 x time = const, by wall and by CPU time. Requirement (issue
    #13): cloudmeta's noise at least 3x lower than Mitsuba's at equal time, or its equal-noise time at
    least 10x shorter. Results and discussion: docs/multiple_scattering.md.
@@ -120,6 +123,13 @@ def noise_of_pair(a, b):
     """Per-image noise from two independent renders: RMSE of their difference / sqrt 2."""
     d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
     return float(np.sqrt(np.mean(d * d)) / math.sqrt(2.0))
+
+
+def noise_of_seeds(images):
+    """Per-image noise from two or more independent renders: the RMS over pixels of their standard
+    deviation (noise_of_pair for two)."""
+    stack = np.asarray(images, np.float64)
+    return float(np.sqrt(np.mean(np.var(stack, axis=0, ddof=1))))
 
 
 #: block side (pixels) of agreement's block means
@@ -301,8 +311,10 @@ def mitsuba_mean(mi, ms, spp, passes):
 
 
 def calibrate(fn, target, start, cap):
-    """The sample count that takes about ``target`` seconds with fn(samples) -> seconds (linear in the
-    count beyond a fixed cost, measured at start and 4 start)."""
+    """The sample count that takes about ``target`` seconds with fn(samples) -> seconds: linear in the
+    count beyond a fixed cost, measured at start and 4 start, then corrected once by a run at that count
+    (the cost per sample at 4 start need not hold at 100 start: cloudmeta's renders took half the budget
+    in run 13). Returns (count, seconds per sample, fixed seconds)."""
     t1 = fn(start)
     t2 = fn(4 * start)
     # at least half the mean cost at 4 start: timing noise (or a fixed cost that dwarfs the samples) must
@@ -310,11 +322,17 @@ def calibrate(fn, target, start, cap):
     per = max((t2 - t1) / (3 * start), 0.5 * t2 / (4 * start))
     fixed = max(t1 - per * start, 0.0)
     n = int(max(1, min(cap, round((target - fixed) / per))))
+    if n > 4 * start:
+        t3 = fn(n)
+        per = max((t3 - t1) / (n - start), 0.5 * t3 / n)  # the slope from start to n
+        fixed = max(t1 - per * start, 0.0)
+        # one correction, by at most 4x either way: a flat clock must not run away
+        n = int(max(1, min(cap, 4 * n, max(n // 4, round((target - fixed) / per)))))
     return n, per, fixed
 
 
-def equal_time(mi, scene, ms, budget, norm, cm_cap, mi_cap, threads=2):
-    """Two seeds each at about ``budget`` seconds, alternated. Returns (the row of figures, the images).
+def equal_time(mi, scene, ms, budget, norm, cm_cap, mi_cap, threads=2, seeds=4):
+    """``seeds`` seeds each at about ``budget`` seconds, alternated. Returns (the row of figures, the images).
     The sample counts are calibrated on CPU time / threads (steadier than wall time on a shared machine);
     norm None: the mean of the four renders."""
     # from 4 paths per camera ray: below one, more paths also trace more camera segments, and with the
@@ -329,17 +347,17 @@ def equal_time(mi, scene, ms, budget, norm, cm_cap, mi_cap, threads=2):
     imgs = {"cm": [], "mi": []}
     secs = {"cm": [], "mi": []}
     cpus = {"cm": [], "mi": []}
-    for seed in (0, 1):
+    for seed in range(seeds):
         for key, run in (("cm", lambda: cloudmeta_render(cm_scene, seed)), ("mi", lambda: mitsuba_render(mi, ms, mi_n, seed))):
             img, sec, cpu = run()
             imgs[key].append(img)
             secs[key].append(sec)
             cpus[key].append(cpu)
-    if norm is None:  # no converged image: the mean of all four renders (their means agree, section 1)
+    if norm is None:  # no converged image: the mean of all the renders (their means agree, section 1)
         norm = float(np.mean(imgs["cm"] + imgs["mi"]))
-    row = dict(budget_s=budget, norm=norm)
+    row = dict(budget_s=budget, norm=norm, seeds=seeds)
     for key, n in (("cm", cm_n), ("mi", mi_n)):
-        noise = noise_of_pair(*imgs[key])
+        noise = noise_of_seeds(imgs[key])
         t = float(np.mean(secs[key]))
         c = float(np.mean(cpus[key]))
         d = np.abs(imgs[key][0] - imgs[key][1])
@@ -391,6 +409,7 @@ def main(argv=None, quick=False):
     ap.add_argument("--mi-ref-spp", type=int, default=1024, help="Mitsuba mean: spp per pass")
     ap.add_argument("--mi-ref-passes", type=int, default=4)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--seeds", type=int, default=4, help="equal-time renders per renderer (at least 2)")
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--save", metavar="DIR", help="also save the images (npz) there, for a closer look")
     ap.add_argument("--equal-time-only", action="store_true",
@@ -398,6 +417,7 @@ def main(argv=None, quick=False):
     args, quick = parse(ap, argv, quick)
     if quick:
         args.size, args.grids, args.time_grids, args.budget, args.scenes = 16, "64", "64", 3.0, SCENES[0]
+        args.seeds = 2
         args.ref_paths, args.ref_passes, args.mi_ref_spp, args.mi_ref_passes = 32, 2, 256, 2
     mi = import_mitsuba(args.threads)
     if mi is None:
@@ -438,7 +458,8 @@ def main(argv=None, quick=False):
                 agree_rows.append(_agreement(mi, ms, scene, name, n, dims, cm_ref, cm_se, cm_sec, t_first, t_vox, args))
             if n in time_grids:
                 print(f"  equal time, ~{args.budget:.0f} s per render, grid {n}", flush=True)
-                row, imgs = equal_time(mi, scene, ms, args.budget, norm, 65536, 1 << 20, args.threads)
+                row, imgs = equal_time(mi, scene, ms, args.budget, norm, 65536, 1 << 20, args.threads,
+                                       max(2, args.seeds))
                 row.update(scene=name, grid=n, size=args.size)
                 time_rows.append(row)
                 for who, key in (("cloudmeta", "cm"), ("Mitsuba", "mi")):
@@ -481,7 +502,7 @@ def _report(agree_rows, time_rows, args, quick):
     print_table("Mean agreement and voxel bias (relative to the mean pixel value of cloudmeta's converged image)",
                 agree_rows, ["scene", "grid", "dims", "rel_mean", "se_rel_mean", "rel_rmse", "noise_rel", "bias_rel",
                              "block_rel_rmse", "block_noise_rel", "block_bias_rel", "mi_spp", "mi_seconds", "cm_paths", "cm_seconds"])
-    print_table("Equal time (noise = RMSE(seed 0 - seed 1) / sqrt 2, relative to the mean pixel value)",
+    print_table("Equal time (noise = RMS over pixels of the seeds' standard deviation, relative to the mean pixel value)",
                 time_rows, ["scene", "grid", "cm_samples", "cm_seconds", "cm_cpu_s", "cm_rel_noise", "mi_samples",
                             "mi_seconds", "mi_cpu_s", "mi_rel_noise", "noise_ratio_mi_over_cm",
                             "equal_noise_time_ratio_mi_over_cm", "noise_ratio_cpu", "equal_noise_cpu_ratio"])
