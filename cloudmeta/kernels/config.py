@@ -338,26 +338,27 @@ def _inline_reference_counts():
 def _split_slow_path(module, fn):
     """NRT_decref as a null test that LLVM inlines, and a call to the rest of numba's body (the atomic
     decrement and the destructor) kept out of line: every inlined copy is a compare and a call, not the whole
-    body (the compile time that inlining adds). Where llvmlite's IR objects do not allow it, fn stays whole."""
+    body (the compile time that inlining adds). Where llvmlite's IR objects lack what this needs (checked
+    before anything moves), fn stays whole."""
     from llvmlite import ir
-    try:
-        slow = ir.Function(module, fn.function_type, "cloudmeta_NRT_decref_slow")
-        slow.attributes.add("noinline")
-        for block in fn.blocks:
-            block.parent = slow
-            for instruction in block.instructions:
-                instruction.replace_usage(fn.args[0], slow.args[0])
-        slow.blocks = fn.blocks
-        fn.blocks = []
-        builder = ir.IRBuilder(fn.append_basic_block())
-        ptr = fn.args[0]
-        is_null = builder.icmp_unsigned("==", ptr, ir.Constant(ptr.type, None))
-        with builder.if_then(is_null, likely=False):
-            builder.ret_void()
-        builder.call(slow, [ptr])
+    instructions = [instruction for block in fn.blocks for instruction in block.instructions]
+    if len(fn.args) != 1 or not all(hasattr(instruction, "replace_usage") for instruction in instructions):
+        return
+    slow = ir.Function(module, fn.function_type, "cloudmeta_NRT_decref_slow")
+    slow.attributes.add("noinline")
+    for instruction in instructions:
+        instruction.replace_usage(fn.args[0], slow.args[0])
+    for block in fn.blocks:
+        block.parent = slow
+    slow.blocks = fn.blocks
+    fn.blocks = []
+    builder = ir.IRBuilder(fn.append_basic_block())
+    ptr = fn.args[0]
+    is_null = builder.icmp_unsigned("==", ptr, ir.Constant(ptr.type, None))
+    with builder.if_then(is_null, likely=False):
         builder.ret_void()
-    except (AttributeError, TypeError, ValueError):
-        pass
+    builder.call(slow, [ptr])
+    builder.ret_void()
 
 
 _prefer_workqueue()

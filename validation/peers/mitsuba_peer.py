@@ -119,15 +119,9 @@ def multiple_scene(scene, cm_spp, ms_spp, max_order):
                    render=replace(scene.render, scattering="multiple", ms_spp=ms_spp, max_order=max_order))
 
 
-def noise_of_pair(a, b):
-    """Per-image noise from two independent renders: RMSE of their difference / sqrt 2."""
-    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
-    return float(np.sqrt(np.mean(d * d)) / math.sqrt(2.0))
-
-
 def noise_of_seeds(images):
     """Per-image noise from two or more independent renders: the RMS over pixels of their standard
-    deviation (noise_of_pair for two)."""
+    deviation (for two, the RMSE of their difference / sqrt 2)."""
     stack = np.asarray(images, np.float64)
     return float(np.sqrt(np.mean(np.var(stack, axis=0, ddof=1))))
 
@@ -334,7 +328,7 @@ def calibrate(fn, target, start, cap):
 def equal_time(mi, scene, ms, budget, norm, cm_cap, mi_cap, threads=2, seeds=4):
     """``seeds`` seeds each at about ``budget`` seconds, alternated. Returns (the row of figures, the images).
     The sample counts are calibrated on CPU time / threads (steadier than wall time on a shared machine);
-    norm None: the mean of the four renders."""
+    norm None: the mean of all the renders."""
     # from 4 paths per camera ray: below one, more paths also trace more camera segments, and with the
     # deterministic part's fixed cost the slope's floor in calibrate overstated a path's cost 3-10x (runs 1-8
     # rendered ~1.4-2 s where they aimed at 6 s)
