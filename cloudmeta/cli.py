@@ -53,7 +53,7 @@ def _render(args):
     # every output is created now as a temporary file and renamed into place only when all are written
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
-        image, error, took, approximation, estimated, raw = _render_image(
+        image, error, took, approximation, estimated, raw, scattered = _render_image(
             scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate, denoise=args.denoise)
         encode_outputs(image, tmps, scene.render.colourspace, exposure, error, raw)
     if error is not None:
@@ -61,6 +61,11 @@ def _render(args):
                   f"quality {scene.render.quality}: {QUALITY_TARGETS.get(scene.render.quality, 'none')}")
         print(f"cloudmeta: estimated relative RMSE {estimated:.2e} (target of {target}; "
               f"per pixel in the EXR's channels error.R/G/B)")
+    if scattered is not None and scattered.level is not None:
+        print(f"cloudmeta: quadrature calibrated on the pilot: {_level_words(scattered.level)} quality "
+              f"{scene.render.quality}" + ("" if scattered.predicted is None else
+                                           f", measured relative RMSE {scattered.predicted:.1e} on its "
+                                           f"{scattered.rays} rays") + " (render.calibrate; docs/error_estimate.md)")
     if args.denoise:
         print("cloudmeta: denoised the Monte Carlo part (Intel Open Image Denoise); the image before it is in "
               "the EXR's channels raw.R/G/B/A")
@@ -91,7 +96,7 @@ def _outputs(args, scene):
 
 def _render_image(scene, progress, error=False, denoise=False):
     """(image, error or None, seconds, the approximation's error or None, the estimated relative RMSE or None,
-    the image before denoising or None): the render, on a thread of its own (``interruptible``)."""
+    the image before denoising or None, the pilot's renderer.pilot.LightScale): the render, on a thread of its own (``interruptible``)."""
     import numpy as np
 
     from .renderer import render_frame
@@ -103,7 +108,14 @@ def _render_image(scene, progress, error=False, denoise=False):
     if not np.all(np.isfinite(image)):
         raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
                                            "the lights' irradiance or intensity (README: Limits)")
-    return image, err, took, result.approximation, result.estimated, result.raw
+    return image, err, took, result.approximation, result.estimated, result.raw, result.scattered
+
+
+def _level_words(level):
+    """The calibration's level in words: how many steps of renderer.estimate's factors from the preset."""
+    if level == 0.0:
+        return "the settings of"
+    return f"{abs(level):.2f} steps {'coarser' if level > 0 else 'finer'} than"
 
 
 def _frames(args):

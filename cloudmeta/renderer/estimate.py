@@ -24,6 +24,19 @@ def coarser_quality(q):
                    cutoff=min(q.cutoff * COARSER["cutoff"], 0.5))
 
 
+def scaled_quality(q, level):
+    """Every quadrature setting coarser by COARSER's factors raised to ``level`` (a real number; negative is
+    finer; 0 returns q itself): the calibration's scale of settings (renderer.pilot), continuous between the
+    estimate's steps. The cutoff stays at most 0.5 and the widest angle at most 1.6 radians, as
+    coarser_quality and the scene's own limits keep them."""
+    if level == 0.0:
+        return q
+    f = {key: factor ** level for key, factor in COARSER.items()}
+    return replace(q, tolerance=q.tolerance * f["tolerance"], max_tau=q.max_tau * f["max_tau"],
+                   max_length=q.max_length * f["max_length"], max_angle=min(q.max_angle * f["max_angle"], 1.6),
+                   cutoff=min(q.cutoff * f["cutoff"], 0.5))
+
+
 def finer_quality(q):
     """One refinement of an error-controlled render: every quadrature setting finer by COARSER's factors."""
     return replace(q, tolerance=q.tolerance / COARSER["tolerance"], max_tau=q.max_tau / COARSER["max_tau"],

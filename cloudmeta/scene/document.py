@@ -159,6 +159,12 @@ class Node:
             self.fail(key, f"expected {expect}, got {describe(value)}")
         return None if value is None else int(value)
 
+    def flag(self, key, default=REQUIRED):
+        value, given = self._raw(key, default)
+        if given and not isinstance(value, bool):
+            self.fail(key, f"expected true or false, got {describe(value)}")
+        return value
+
     def choice(self, key, options, default=REQUIRED):
         value, given = self._raw(key, default)
         if given and not (isinstance(value, str) and value in options):

@@ -154,7 +154,8 @@ def _render(top, overrides=None):
         ms_spp=n.integer("ms_spp", 16, **_int_range(1, lim.MAX_SPP)),
         track_from=n.integer("track_from", 2, **_int_range(2, lim.MAX_ORDER + 1)),
         error=n.number("error", None, check=lambda v: lim.MIN_ERROR_TARGET <= v <= 0.5,
-                       expect=f"a relative RMSE from {lim.MIN_ERROR_TARGET:g} to 0.5 (docs/error_estimate.md)"))
+                       expect=f"a relative RMSE from {lim.MIN_ERROR_TARGET:g} to 0.5 (docs/error_estimate.md)"),
+        calibrate=n.flag("calibrate", True))
 
 
 def _octaves(render):

@@ -84,6 +84,7 @@ class RenderSettings:
     ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
     track_from: int = 2         #: multiple: the first vertex reached by a tracked flight (docs/model.md §10.1)
     error: float | None = None  #: a target relative RMSE: the quadrature is refined until the estimate meets it
+    calibrate: bool = True      #: single, approximate: the preset's settings calibrated on the pilot (renderer.pilot)
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """renderer.pilot: the frame's scattered-light scale that the quadrature's tolerance is relative to (issue
 #23), and the closed-form in-scattering of a scene lit by ambient light alone."""
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -9,7 +10,9 @@ import pytest
 import cloudmeta as cm
 from cloudmeta.renderer import render_frame
 from cloudmeta.renderer.pack import pack_scene
-from cloudmeta.renderer.pilot import MIN_SIDE, STRIDE, light_scale, pilot_size
+from cloudmeta.errors import SceneError
+from cloudmeta.renderer.pilot import (CALIBRATION_RAYS, MAX_LEVEL, MIN_SIDE, SHARE, STRIDE, calibrated_level,
+                                      calibration_size, light_scale, pilot_size)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -64,3 +67,75 @@ def test_ambient_light_alone_is_integrated_in_closed_form():
         expected = albedo * s.ambient * alpha + np.asarray(s.background) * (1.0 - alpha)
         assert alpha.max() > 0.9
         assert np.abs(img[..., :3] - expected).max() < 1e-5  # float32 output
+
+
+# ---- calibration (issue #23: the preset's target checked on the frame) ----------------------------------
+
+def test_calibration_grid_keeps_4096_rays_or_the_whole_frame():
+    assert calibration_size(512, 512) == (64, 64)
+    assert calibration_size(64, 48) == (64, 48)  # fewer pixels than CALIBRATION_RAYS: every one
+    w, h = calibration_size(1920, 1080)
+    assert CALIBRATION_RAYS <= w * h <= 1.2 * CALIBRATION_RAYS and abs(w / h - 1920 / 1080) < 0.05
+
+
+@pytest.mark.parametrize("per_level, expected", [
+    (lambda lv: 1.4e-4 * 3.0 ** lv, math.log(0.45e-3 / 4.2e-4) / math.log(3.0) + 1.0),  # between 1 and 2: aimed at 0.9 x half
+    (lambda lv: 6e-4 * 3.0 ** lv, 0.0),     # level 0 within the target but above half of it: the preset
+    (lambda lv: 2e-3 * 3.0 ** lv, -1.0),    # level 0 above the target: one step finer
+    (lambda lv: 1e-5 * 3.0 ** lv, 3.0),     # every level passes: MAX_LEVEL
+    (lambda lv: 0.0, 3.0),                  # no error at all (a closed form)
+    (lambda lv: 3e-4 * 3.0 ** lv, math.log(0.45e-3 / 3e-4) / math.log(3.0)),  # between 0 and 1
+])
+def test_calibrated_level_is_the_coarsest_within_half_the_target(per_level, expected):
+    calls = []
+
+    def error_at(level):
+        calls.append(level)
+        return per_level(level)
+    level, measured = calibrated_level(error_at, 1e-3)
+    assert level == pytest.approx(expected, abs=1e-9)
+    if level > 0.0:
+        assert measured == pytest.approx(per_level(level)) and measured <= SHARE * 1e-3 * (1 + 1e-12)
+    assert calls[0] == 1.0  # level 1 first: most scenes pass there, and level 0's render is spared
+    assert max(calls) <= MAX_LEVEL
+
+
+def test_an_interpolated_level_that_fails_falls_back_to_the_last_whole_step():
+    steps = {1.0: 4e-4, 2.0: 2e-3}
+    level, measured = calibrated_level(lambda lv: steps.get(lv, 9e-4), 1e-3)
+    assert (level, measured) == (1.0, 4e-4)
+
+
+def test_calibration_keeps_the_target_and_turns_off_where_the_settings_are_the_users():
+    """The shipped cumulus at 64 x 48: calibrated, its error against a render at ``reference`` is at most half the
+    preset's target (its calibration grid is the whole frame); with render.calibrate false, an explicit
+    tolerance or render.error, the frame takes the preset's own settings."""
+    s = cm.load_scene(ROOT / "scenes" / "cumulus.yaml", width=64, height=48)
+    s = replace(s, background=np.zeros(3), ambient=None)  # the image is the scattered light alone
+    calibrated = render_frame(s, progress=False)
+    assert calibrated.scattered.level is not None and calibrated.scattered.level > 0.0
+    assert calibrated.scattered.rays == 64 * 48
+    ref = np.asarray(render_frame(replace(s, render=replace(s.render, quality="reference")),
+                                  progress=False).image, np.float64)[..., :3]
+    img = np.asarray(calibrated.image, np.float64)[..., :3]
+    true = np.sqrt(np.mean((img - ref) ** 2)) / ref.mean()
+    assert true <= 0.5e-3 * 1.2  # SHARE of default's 1e-3; within float32 output and the reference's own error
+    assert calibrated.scattered.predicted == pytest.approx(true, rel=0.3)
+    plain = render_frame(replace(s, render=replace(s.render, calibrate=False)), progress=False)
+    assert plain.scattered.level is None
+    assert plain.cost()["nodes"] > 1.3 * calibrated.cost()["nodes"]
+    for off in (dict(tolerance=1e-3), dict(error=1e-3), dict(scattering="multiple", ms_spp=1)):
+        assert render_frame(replace(s, render=replace(s.render, **off)), progress=False).scattered.level is None
+
+
+def test_render_calibrate_is_a_yaml_flag(tmp_path):
+    text = (ROOT / "scenes" / "cumulus.yaml").read_text().replace("cumulus.csv", str(ROOT / "scenes" / "cumulus.csv"))
+    for value, expected in (("false", False), ("true", True)):
+        f = tmp_path / f"s_{value}.yaml"
+        f.write_text(text.replace("render: {", f"render: {{calibrate: {value}, ", 1))
+        assert cm.load_scene(f).render.calibrate is expected
+    assert cm.load_scene(ROOT / "scenes" / "cumulus.yaml").render.calibrate is True
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace("render: {", "render: {calibrate: 1, ", 1))
+    with pytest.raises(SceneError, match="render.calibrate"):
+        cm.load_scene(bad)
