@@ -222,6 +222,28 @@ def emit(src, s, seed, p, o, w, rgb):
         rgb[2] *= b
 
 
+@njit(**NJIT_INLINE)
+def in_footprint(src, s, o, w):
+    """Whether the parallel photon (o, w) of directional source s starts in a texel of its disk that can meet
+    the media (records.PhotonSources.footprint; renderer.fluence.sun_footprint)."""
+    n = src.footprint.shape[1]
+    px = 2.0 * src.radius / n
+    ia = 0
+    ib = 0
+    for k in range(2):
+        q = 0.0
+        for c in range(3):  # the point on the disk relative to its centre (kernels.fluence._disk_point)
+            q += (o[c] + src.radius * w[c] - src.centre[c]) * src.axes[s, k, c]
+        i = int(math.floor((q + src.radius) / px))
+        if i < 0 or i >= n:
+            return False
+        if k == 0:
+            ia = i
+        else:
+            ib = i
+    return src.footprint[s, ia, ib] != 0
+
+
 @njit(**NJIT)
 def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_order, where):
     """Photons first .. last - 1 (numbered over all sources, records.PhotonSources.first) deposit into coef
@@ -240,6 +262,8 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
     for p in range(first, last):
         s = _source_of(src.first, p)
         emit(src, s, seed, p, o, w, rgb)
+        if src.kind[s] == DIRECTIONAL and not in_footprint(src, s, o, w):
+            continue  # its straight flight meets no media: it would scatter nothing and deposit nothing
         from_light = src.kind[s] != ENVIRONMENT
         key = PathKey(seed, p, PHOTON_PATH)
         weight = 1.0

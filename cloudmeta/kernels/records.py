@@ -92,8 +92,11 @@ FlightTally = namedtuple("FlightTally", ["grid", "coef", "rgb"])
 #: fluence.ENVIRONMENT), vec (S, 3) the direction towards a directional light or a point light's position,
 #: rgb (S, 3) the power of one photon (times the environment's radiance along it), first (S + 1,) the
 #: photons' numbering per source; centre (3,) and radius of the sphere the parallel photons cross; the
-#: background table (K, 3) (kernels.camera.background_radiance)
-PhotonSources = namedtuple("PhotonSources", ["kind", "vec", "rgb", "first", "centre", "radius", "background"])
+#: background table (K, 3) (kernels.camera.background_radiance); footprint (S, R, R) 1 where a directional
+#: source's parallel rays through that texel of its disk can meet the media, axes (S, 2, 3) the disk's texel
+#: axes (renderer.fluence.sun_footprint; all ones for the other sources)
+PhotonSources = namedtuple("PhotonSources", ["kind", "vec", "rgb", "first", "centre", "radius", "background",
+                                             "footprint", "axes"])
 
 #: the in-scattering quadrature (cloudmeta.renderer.pack.quadrature): the step rule, 7 Gauss and 15 Kronrod nodes
 #: on [0, 1] with their Lagrange bases at a fine Gauss rule (fine_y, fine_w); where the Gauss nodes and

@@ -30,6 +30,8 @@ BATCHES = 8
 PEAK_DEGREES = 10.0
 #: the cells' integral of sigma_s (render.grid.deposit: collisions): the mean over SUBCELLS^3 points per cell
 SUBCELLS = 4
+#: texels per side of a directional light's footprint on its photons' disk (sun_footprint)
+FOOTPRINT_TEXELS = 256
 #: per quality preset: (cells, as the side of a cube of cells of the media's box's volume; photons)
 GRID_PRESETS = {"draft": (24, 1 << 21), "default": (40, 1 << 23), "fine": (56, 1 << 25)}
 
@@ -51,9 +53,39 @@ def grid_deposit(scene):
     return COLLISIONS if _grid_keys(scene)[2] == "collisions" else FLIGHTS
 
 
-def photon_sources(records, centre, radius, photons) -> PhotonSources:
+def sun_footprint(mgrid, w, centre, radius, texels=FOOTPRINT_TEXELS):
+    """(footprint (texels, texels) uint8, axes (2, 3)): which texels of the disk (centre, radius) perpendicular
+    to the unit w hold a ray along w that can meet a cell of the majorant grid mgrid with media. Conservative:
+    a texel is marked where its centre lies within a cell's bounding-sphere radius plus half the texel's
+    diagonal of the cell centre's projection, so no ray that meets a cell starts in an unmarked texel."""
+    a = np.cross(w, [0.0, 0.0, 1.0] if abs(w[2]) < 0.9 else [1.0, 0.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(w, a)
+    axes = np.stack([a, b])
+    footprint = np.zeros((texels, texels), np.uint8)
+    cells = np.nonzero(mgrid.sigma_max > 0.0)[0]
+    if len(cells) == 0:
+        return footprint, axes
+    nx, ny = mgrid.dims[0], mgrid.dims[1]
+    ijk = np.stack([cells % nx, (cells // nx) % ny, cells // (nx * ny)], axis=1)
+    projected = ((mgrid.origin + (ijk + 0.5) * mgrid.size) - centre) @ axes.T + radius  # (n, 2), from the corner
+    px = 2.0 * radius / texels
+    reach = 0.5 * math.sqrt(3.0) * mgrid.size + px / math.sqrt(2.0)
+    span = int(math.ceil(reach / px)) + 1
+    base = np.floor(projected / px).astype(np.int64)
+    for di in range(-span, span + 1):
+        for dj in range(-span, span + 1):
+            idx = base + np.array([di, dj])
+            near = np.hypot((idx[:, 0] + 0.5) * px - projected[:, 0], (idx[:, 1] + 0.5) * px - projected[:, 1])
+            keep = (near <= reach * (1.0 + 1e-9)) & np.all((idx >= 0) & (idx < texels), axis=1)
+            footprint[idx[keep, 0], idx[keep, 1]] = 1
+    return footprint, axes
+
+
+def photon_sources(records, centre, radius, photons, mgrid=None) -> PhotonSources:
     """The lights and the environment (records: the packed records.SceneRecords) as photon sources around the
-    sphere (centre, radius), ``photons`` shared among those with light by power."""
+    sphere (centre, radius), ``photons`` shared among those with light by power; each directional light's
+    footprint on its disk from the majorant grid mgrid (sun_footprint; everywhere where mgrid is None)."""
     sources = []  # (kind, vec, the power of all its photons per unit of rgb)
     lights = records.lights
     disk = math.pi * radius * radius
@@ -69,7 +101,12 @@ def photon_sources(records, centre, radius, photons) -> PhotonSources:
     # one photon's rgb: a light's power per photon; the environment's 4 pi x disk per photon, times its radiance
     unit = [(np.full(3, 4.0 * math.pi * disk) if kind == ENVIRONMENT else power) / n
             for (kind, _, power), n in zip(sources, counts)]
-    return PhotonSources(kind=np.array([src[0] for src in sources], np.int64),
+    footprint = np.ones((len(sources), FOOTPRINT_TEXELS, FOOTPRINT_TEXELS), np.uint8)
+    axes = np.zeros((len(sources), 2, 3))
+    for k, (kind, vec, _) in enumerate(sources):
+        if kind == DIRECTIONAL and mgrid is not None:
+            footprint[k], axes[k] = sun_footprint(mgrid, -np.asarray(vec, np.float64), centre, radius)
+    return PhotonSources(footprint=footprint, axes=axes, kind=np.array([src[0] for src in sources], np.int64),
                          vec=np.array([src[1] for src in sources], np.float64).reshape(-1, 3),
                          rgb=np.ascontiguousarray(np.array(unit, np.float64).reshape(-1, 3)),
                          first=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
@@ -118,7 +155,7 @@ def radiance_grid(scene, records, seed, camera_position, peak) -> RadianceGrid:
     dims = np.maximum(np.ceil(extent / size - 1e-9), 1).astype(np.int64)
     centre = lo + 0.5 * extent
     radius = 0.5 * float(np.linalg.norm(extent)) * 1.001
-    src = photon_sources(records, centre, radius, photons)
+    src = photon_sources(records, centre, radius, photons, mgrid)
     k, j, i = np.meshgrid(*(np.arange(n) for n in dims[::-1]), indexing="ij")
     centres = lo + (np.stack([i, j, k], -1).reshape(-1, 3) + 0.5) * size
     towards = np.asarray(camera_position, np.float64) - centres

@@ -135,3 +135,32 @@ def test_delta_split_of_the_forward_peak():
     np.testing.assert_allclose(peak[0], [cos_c, phase(*media.phase[0], cos_c)])
     np.testing.assert_allclose(view.scale * view.albedo, media.scale * media.albedo)  # sigma_s kept
     np.testing.assert_allclose(view.scale, media.scale - f0 * media.albedo * media.scale)  # sigma_t - f sigma_s
+
+
+def test_photons_outside_the_suns_footprint_are_skipped_without_changing_the_grid(tmp_path):
+    """A directional light's photons whose straight flight meets no cell with media are not traced
+    (renderer.fluence.sun_footprint): they would scatter nothing and deposit nothing, so the grid is the same to
+    the last bit as with every photon traced; and the footprint covers the projection of every ball."""
+    from cloudmeta.renderer import fluence
+    scene = cloud(tmp_path, GRID + "}", size=10)
+    records = pack_scene(scene, 0).records
+    peak, _ = delta_split(records.media, fluence.PEAK_DEGREES)
+    skipped = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak)
+    original = fluence.photon_sources
+    try:
+        fluence.photon_sources = lambda rec, centre, radius, photons, mgrid=None: original(rec, centre, radius, photons)
+        traced = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak)
+    finally:
+        fluence.photon_sources = original
+    assert np.abs(traced.coef).sum() > 0
+    np.testing.assert_array_equal(skipped.coef, traced.coef)
+    mgrid = fluence.majorant_grid(scene, records.media)
+    w = -np.asarray(records.lights.vec[0], np.float64)
+    centre, radius = np.zeros(3), 10.0
+    footprint, axes = fluence.sun_footprint(mgrid, w, centre, radius)
+    assert 0 < footprint.mean() < 1
+    px = 2 * radius / footprint.shape[0]
+    for blob in (m.blob for m in scene.media):  # every ball's centre projects into the footprint
+        for c in blob.centers:
+            q = (np.asarray(c) - centre) @ axes.T + radius
+            assert footprint[int(q[0] // px), int(q[1] // px)] == 1
