@@ -82,7 +82,7 @@ def pilot_size(width, height):
 
 def calibration_size(width, height):
     """The calibration's grid of a width x height frame: every stride-th pixel, the stride the largest that
-    keeps CALIBRATION_RAYS rays (the whole frame where it has fewer)."""
+    keeps at least CALIBRATION_RAYS rays (under 4x as many; the whole frame where it has fewer)."""
     stride = max(1, int(math.sqrt(width * height / CALIBRATION_RAYS)))
     return -(-width // stride), -(-height // stride)
 
