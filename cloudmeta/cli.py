@@ -62,8 +62,8 @@ def _render(args):
         print(f"cloudmeta: estimated relative RMSE {estimated:.2e} (target of {target}; "
               f"per pixel in the EXR's channels error.R/G/B)")
     if scattered is not None and scattered.level is not None:
-        print(f"cloudmeta: quadrature calibrated on the pilot: {_level_words(scattered.level)} quality "
-              f"{scene.render.quality}" + ("" if scattered.predicted is None else
+        print(f"cloudmeta: quadrature calibrated for quality {scene.render.quality}: {_level_words(scattered.level)} "
+              f"quality default's settings" + ("" if scattered.predicted is None else
                                            f", measured relative RMSE {scattered.predicted:.1e} on its "
                                            f"{scattered.rays} rays") + " (render.calibrate; docs/error_estimate.md)")
     if args.denoise:
