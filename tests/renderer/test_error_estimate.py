@@ -90,7 +90,12 @@ def test_cli_writes_the_estimate_and_prints_its_rel_rmse(tmp_path):
     assert np.array_equal(back[..., 4:], err[..., ::-1])
     reported = float(run.stdout.split("estimated relative RMSE ")[1].split()[0])
     from cloudmeta.renderer import render_frame
-    assert reported == pytest.approx(render_frame(s, progress=False, error=True).estimated, rel=1e-2)
+    result = render_frame(s, progress=False, error=True)
+    assert reported == pytest.approx(result.estimated, rel=1e-2)
+    # the calibration's line: the level it chose on default's ladder and the error it measured on its rays
+    line = [ln for ln in run.stdout.splitlines() if "quadrature calibrated for quality default" in ln]
+    assert len(line) == 1 and f"on its {8 * 6} rays" in line[0]
+    assert f"{abs(result.scattered.level):.2f} steps" in line[0] or result.scattered.level == 0.0
 
 
 def test_cli_refuses_the_estimate_for_sequences(tmp_path):
