@@ -44,12 +44,12 @@ from .single import render_single
 #: keeps MIN_SIDE pixels (all of them where the frame's is shorter still); its aspect is the frame's
 STRIDE = 8
 MIN_SIDE = 16
-#: calibration: the frame's settings are the coarsest whose error on the pilot grid is at most SHARE of the
-#: target, at most MAX_LEVEL steps coarser than the preset (each step: tolerance and cutoff x 3, max_tau,
-#: max_length and max_angle x 2); a level found between two steps is kept if its own error passes
+#: calibration: the frame's settings are the coarsest whose error on the calibration grid is at most SHARE of
+#: the target, at most MAX_LEVEL steps above the preset's START on the ladder (each step: tolerance and cutoff
+#: x 3, max_tau, max_length and max_angle x 2); a level found between two steps is kept if its own error passes
 SHARE = 0.5
 MAX_LEVEL = 3.0
-#: the calibration's grid keeps this many rays (pilot.calibration_size): quadrature errors gather in a few
+#: the calibration's grid keeps at least this many rays (calibration_size): quadrature errors gather in a few
 #: pixels (folds, entries), and the 352 rays of a 64 x 48 frame's pilot grid measured them 3x too low
 CALIBRATION_RAYS = 4096
 #: renders spent between the last whole step that passed and the first that failed
@@ -177,13 +177,12 @@ def _between(error_at, passed, e_passed, failed, e_failed, limit):
 
 
 def calibrate(scene, packed, quality, scale):
-    """(the frame's Quality, its LightScale with the level): ``quality`` (the preset's, with the pilot's
-    scale) at the calibrated level (module docstring)."""
+    """(the frame's Quality, its LightScale with the level): LADDER's settings, with ``quality``'s scale and
+    shadow share, at the calibrated level (module docstring; levels relative to the preset's START)."""
     target = QUALITY_TARGETS[scene.render.quality]
     size = calibration_size(scene.image.width, scene.image.height)
-    ladder = replace(quality, **{key: value for key, value in
-                                 vars(resolve_quality(replace(scene.render, quality=LADDER), scene.length_scale())).items()
-                                 if key in QUADRATURE_KEYS})
+    on_ladder = resolve_quality(replace(scene.render, quality=LADDER), scene.length_scale())
+    ladder = replace(quality, **{key: getattr(on_ladder, key) for key in QUADRATURE_KEYS})
     start = START[scene.render.quality]
 
     def pilot_at(level):
