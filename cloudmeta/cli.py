@@ -62,8 +62,8 @@ def _render(args):
         print(f"cloudmeta: estimated relative RMSE {estimated:.2e} (target of {target}; "
               f"per pixel in the EXR's channels error.R/G/B)")
     if scattered is not None and scattered.level is not None:
-        print(f"cloudmeta: quadrature calibrated for quality {scene.render.quality}: {_level_words(scattered.level)} "
-              f"quality default's settings" + ("" if scattered.predicted is None else
+        print(f"cloudmeta: quadrature calibrated for quality {scene.render.quality}: {_level_words(scattered.level)}"
+              + ("" if scattered.predicted is None else
                                            f", measured relative RMSE {scattered.predicted:.1e} on its "
                                            f"{scattered.rays} rays") + " (render.calibrate; docs/error_estimate.md)")
     if args.denoise:
@@ -96,7 +96,8 @@ def _outputs(args, scene):
 
 def _render_image(scene, progress, error=False, denoise=False):
     """(image, error or None, seconds, the approximation's error or None, the estimated relative RMSE or None,
-    the image before denoising or None, the pilot's renderer.pilot.LightScale): the render, on a thread of its own (``interruptible``)."""
+    the image before denoising or None, the pilot's renderer.pilot.LightScale): the render, on a thread of its
+    own (``interruptible``)."""
     import numpy as np
 
     from .renderer import render_frame
@@ -112,10 +113,12 @@ def _render_image(scene, progress, error=False, denoise=False):
 
 
 def _level_words(level):
-    """The calibration's level in words: how many steps of renderer.estimate's factors from the preset."""
+    """The calibration's level in words: how many steps of renderer.estimate's factors from the ladder's
+    settings (renderer.pilot.LADDER)."""
+    from .renderer.pilot import LADDER
     if level == 0.0:
-        return "the settings of"
-    return f"{abs(level):.2f} steps {'coarser' if level > 0 else 'finer'} than"
+        return f"quality {LADDER}'s settings"
+    return f"{abs(level):.2f} steps {'coarser' if level > 0 else 'finer'} than quality {LADDER}'s settings"
 
 
 def _frames(args):

@@ -94,9 +94,10 @@ def calibration_size(width, height):
 
 
 def pilot_image(scene, packed, quality, size=None):
-    """The pilot's H x W x 4 image at ``quality`` (a renderer.quality.Quality): the scattered light alone
-    on the pilot grid (or a grid of ``size``, (width, height)), rendered by the single-scattering driver with ``packed``'s scene records (BVHs,
-    shadow maps), the background and the surfaces' colours blackened, so that it compiles nothing new."""
+    """The pilot's H x W x 4 image at ``quality`` (a renderer.quality.Quality): the scattered light alone on
+    the pilot grid (or a grid of ``size``, (width, height)), rendered by the single-scattering driver with
+    ``packed``'s scene records (BVHs, shadow maps), the background and the surfaces' colours blackened, so
+    that it compiles nothing new."""
     width, height = size or pilot_size(scene.image.width, scene.image.height)
     small = replace(scene, image=replace(scene.image, width=width, height=height, spp=1))
     rec = packed.records

@@ -15,6 +15,7 @@ from cloudmeta.errors import SceneError
 from cloudmeta.kernels.optics import HG, phase
 from cloudmeta.renderer import render, render_frame
 from cloudmeta.kernels.fluence import COLLISIONS, FLIGHTS
+from cloudmeta.kernels.kinds import DIRECTIONAL
 from cloudmeta.renderer.fluence import delta_split, grid_deposit, grid_settings, phase_peak, with_radiance_grid
 from cloudmeta.renderer.multiple import render_multiple
 from cloudmeta.renderer.pack import pack_scene
@@ -145,13 +146,21 @@ def test_photons_outside_the_suns_footprint_are_skipped_without_changing_the_gri
     scene = cloud(tmp_path, GRID + "}", size=10)
     records = pack_scene(scene, 0).records
     peak, _ = delta_split(records.media, fluence.PEAK_DEGREES)
-    skipped = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak)
     original = fluence.photon_sources
+    used = []
+
+    def spy(rec, centre, radius, photons, mgrid=None):
+        used.append(original(rec, centre, radius, photons, mgrid))
+        return used[-1]
     try:
+        fluence.photon_sources = spy
+        skipped = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak)
         fluence.photon_sources = lambda rec, centre, radius, photons, mgrid=None: original(rec, centre, radius, photons)
         traced = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak)
     finally:
         fluence.photon_sources = original
+    sun = int(np.flatnonzero(used[0].kind == DIRECTIONAL)[0])  # the directional light: part of its disk is skipped
+    assert 0.0 < used[0].footprint[sun].mean() < 1.0
     assert np.abs(traced.coef).sum() > 0
     np.testing.assert_array_equal(skipped.coef, traced.coef)
     mgrid = fluence.majorant_grid(scene, records.media)
