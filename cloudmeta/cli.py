@@ -66,6 +66,10 @@ def _render(args):
               + ("" if scattered.predicted is None else
                                            f", measured relative RMSE {scattered.predicted:.1e} on its "
                                            f"{scattered.rays} rays") + " (render.calibrate; docs/error_estimate.md)")
+        from .renderer.pilot import MIN_TRUSTED
+        if scattered.trusted is not None and scattered.trusted < MIN_TRUSTED:
+            print(f"cloudmeta: shadows hybrid: the calibration trusted {100 * scattered.trusted:.0f} % of the shadow "
+                  f"map's lookups (under {100 * MIN_TRUSTED:.0f} %): exact shadow rays instead")
     if args.denoise:
         print("cloudmeta: denoised the Monte Carlo part (Intel Open Image Denoise); the image before it is in "
               "the EXR's channels raw.R/G/B/A")

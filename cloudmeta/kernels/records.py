@@ -107,11 +107,12 @@ PhotonSources = namedtuple("PhotonSources", ["kind", "vec", "rgb", "first", "cen
 #: light_scale (the frame's scattered-light scale that tolerance is relative to, cloudmeta.renderer.pilot; 0:
 #: relative to each ray's brightest J instead), and map_tolerance: the error of J (r + g + b, weighted by the view
 #: transmittance, absolute) that a shadow map's interpolation may make at a node before an exact shadow ray
-#: replaces it (``shadows: hybrid``; inf for ``shadows: map``, which always trusts the map; kernels.lighting)
+#: replaces it (``shadows: hybrid``; inf for ``shadows: map``, which always trusts the map; kernels.lighting);
+#: growth: the step limits at view depth u are max_tau and max_length times e^(growth u) (0: equal steps)
 Quadrature = namedtuple("Quadrature", ["gauss_x", "gauss_lag", "kronrod_x", "kronrod_lag", "gauss_col",
                                        "kronrod_col", "tail", "fine_y", "fine_w", "max_tau", "max_length",
                                        "max_angle", "cutoff", "u_stop", "tol_t", "tolerance", "light_scale",
-                                       "map_tolerance"])
+                                       "map_tolerance", "growth"])
 
 #: a pinhole camera (docs/model.md §8): position, forward, and right / up scaled to the image plane's
 #: half-extent at distance 1 (3,) each; the image size, samples per pixel and the jitter seed

@@ -27,7 +27,8 @@ The quadrature
 On each interval the view optical depth tau(0, t) is exact at any t (the antiderivative of a Bernstein
 polynomial). The in-scattering integral is taken in optical depth u, where T sigma_s dt = e^-u
 (sigma_s/sigma_t) du: product-integration weights (exact for e^-u times a polynomial, see _exp_weights)
-on steps no thicker than ``max_tau`` and no longer than ``max_length``; each step takes 7 Gauss nodes,
+on steps no thicker than ``max_tau`` and no longer than ``max_length`` (both times e^(growth u) at view depth u:
+a step seen through e^-u may be that much rougher); each step takes 7 Gauss nodes,
 the 8 Kronrod nodes of G7-K15 where J's Legendre tail exceeds ``tolerance``, and is halved where the two
 rules disagree (docs/model_notes.md); an exact shadow ray goes from every node to every light; near
 point lights the segment is first cut at equal angles (at most ``max_angle``) seen from the light, which
@@ -289,7 +290,8 @@ def _add_rule(out, e0, node_w, j_val, cols, n):
 def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out, scratch):
     """out[:3] += the in-scattering integral over the inside segment of intervals k_a .. k_b - 1 (adjacent
     end to start): cut at equal angles seen from the point light that sees it under the widest angle,
-    each part cut into steps of at most ``max_tau`` and ``max_length``. j_max: the largest J met on this
+    each part cut into steps of at most ``max_tau`` and ``max_length``, times e^(growth u) at view depth u
+    (records.Quadrature). j_max: the largest J met on this
     ray so far. Returns (work, j_max)."""
     rp = work.pieces
     ta = rp.el_t0[k_a]
@@ -317,8 +319,15 @@ def segment_in_scattering(o, d, k_a, k_b, j_max, scene, quad, work, out, scratch
         # a polynomial: the nodes follow only how the light J varies
         n_steps = max(1, int(math.ceil(max(sub_u / quad.max_tau, (t_end - t_start) / quad.max_length))))
         h = sub_u / n_steps
-        for st in range(n_steps):
-            state = step_in_scattering(o, d, u_start + st * h, h, k_b, state, scene, quad, work, out)
+        # a step's error is seen through e^-u: steps grow as e^(growth u) with the view depth u, so that each
+        # may err about as much in the image (growth 0: equal steps); one short of the end takes the rest
+        u = u_start
+        while u < u_end and u < quad.u_stop:
+            h_u = h * math.exp(min(quad.growth * u, 700.0))
+            if u + 1.25 * h_u >= u_end:
+                h_u = u_end - u
+            state = step_in_scattering(o, d, u, h_u, k_b, state, scene, quad, work, out)
+            u += h_u
     return state.scratch, state.j_max
 
 

@@ -363,7 +363,8 @@ def quadrature(quality) -> Quadrature:
     return Quadrature(**quadrature_rule(), max_tau=float(quality.max_tau), max_length=float(quality.max_length),
                       max_angle=float(quality.max_angle), cutoff=float(quality.cutoff), u_stop=u_stop,
                       tol_t=float(quality.tol_t), tolerance=float(quality.tolerance),
-                      light_scale=float(quality.light_scale), map_tolerance=map_tolerance(quality))
+                      light_scale=float(quality.light_scale), map_tolerance=map_tolerance(quality),
+                      growth=float(quality.growth))
 
 
 def map_tolerance(quality):

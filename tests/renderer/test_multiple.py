@@ -250,9 +250,11 @@ def test_white_furnace(tmp_path):
 
 def test_max_order_one_is_single_scattering(tmp_path):
     """Without an environment the Monte Carlo part of max_order 1 is exactly zero: the image is the
-    single-scattering image bit for bit."""
+    single-scattering image at the same (uncalibrated: multiple scattering is not calibrated) settings bit for
+    bit."""
     scene = _scene(tmp_path, LIT)
-    single = cm.render(replace(scene, render=replace(scene.render, scattering="single")), progress=False)
+    single = cm.render(replace(scene, render=replace(scene.render, scattering="single", calibrate=False)),
+                       progress=False)
     one = replace(scene, render=replace(scene.render, max_order=1))
     mean, err = render_multiple(one)
     assert np.all(mean == 0.0) and np.all(err == 0.0)
