@@ -8,10 +8,11 @@ issue #23). Issue #11 asks for an estimate at least half the true error and at m
 the ratio estimate / true is checked against [0.5, 10] on every scene and preset. Also the time of the render
 with the estimate against the time without it (one render each, after a warm-up; noisy on a shared machine).
 
-    python -m validation.accuracy.error_estimate [--scenes NAME ...]
+    python -m validation.accuracy.error_estimate [--scenes NAME ...] [--shadows exact|hybrid|map]
     python -m validation.accuracy.error_estimate --targets    # render.error = each preset's target: is it met?
 
-Writes validation/results/error_estimate.csv (error_targets.csv with --targets). Exit status 0 only if every
+Writes validation/results/error_estimate.csv (error_estimate_hybrid.csv with --shadows hybrid, and so on;
+error_targets.csv with --targets). Exit status 0 only if every
 ratio lies in [0.5, 10] (every target is met).
 """
 from __future__ import annotations
@@ -35,13 +36,13 @@ def reference(path):
     return suite_references.current(path)[0]
 
 
-def run_scene(path):
+def run_scene(path, shadows="exact"):
     ref = reference(path)
     scene = cm.load_scene(path)
     cm.render(S.with_settings(cm.load_scene(path, width=8, height=6), quality="default"), progress=False, error=True)
     rows = []
     for preset in PRESETS:
-        s = S.with_settings(scene, quality=preset)
+        s = S.with_settings(scene, quality=preset, shadows=shadows)
         t0 = time.perf_counter()
         plain = cm.render(s, progress=False)
         t1 = time.perf_counter()
@@ -92,6 +93,8 @@ def main(argv=None, quick=False):
     ap.add_argument("--scenes", nargs="*", help="suite scene names (default: all)")
     ap.add_argument("--targets", action="store_true",
                     help="render.error set to each preset's target instead: does the true error meet it?")
+    ap.add_argument("--shadows", default="exact", choices=("exact", "hybrid", "map"),
+                    help="the shadow mode of every render (default exact)")
     args, _ = parse(ap, argv)
     paths = [p for p in S.scene_paths() if not args.scenes or p.stem in args.scenes]
     if args.targets:
@@ -103,7 +106,7 @@ def main(argv=None, quick=False):
     print(f"{'scene':24s} {'preset':8s} {'true':>9s} {'estimate':>9s} {'ratio':>7s}  in [0.5, 10]  "
           f"{'time':>6s} {'+estimate':>9s}")
     for path in paths:
-        for r in run_scene(path):
+        for r in run_scene(path, args.shadows):
             rows.append(r)
             print(f"{r['scene']:24s} {r['preset']:8s} {r['true_rel_rmse']:9.2e} {r['estimated_rel_rmse']:9.2e} "
                   f"{r['ratio']:7.2f}  {'yes' if r['within'] else 'NO':12s} {r['seconds']:6.2f} "
@@ -112,7 +115,7 @@ def main(argv=None, quick=False):
     print(f"\n{len(rows)} cases: ratio estimate / true from {ratios.min():.2f} to {ratios.max():.2f} "
           f"(median {np.median(ratios):.2f}); {sum(r['within'] for r in rows)} within [{LOW}, {HIGH}]")
     if not args.scenes:
-        write_csv("error_estimate.csv", rows)
+        write_csv("error_estimate.csv" if args.shadows == "exact" else f"error_estimate_{args.shadows}.csv", rows)
     return dict(rows=rows, passed=all(r["within"] for r in rows))
 
 
