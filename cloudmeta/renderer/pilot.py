@@ -227,7 +227,7 @@ def calibrate(scene, packed, quality, scale):
     chosen = scaled_quality(ladder, start + level)
     trusted = None
     if 0.0 < quality.map_share < math.inf:  # shadows: hybrid; the grid rendered at every level it returns
-        tally = counts[level].reshape(-1, counts[level].shape[-1]).sum(axis=0)
+        tally = counts[level].sum(axis=(0, 1))
         trusted = float(tally[3] / tally[2]) if tally[2] > 0.0 else 0.0
         if trusted < MIN_TRUSTED:  # the lookups would cost more than they spare: exact rays (only more exact)
             chosen = replace(chosen, map_share=0.0)

@@ -33,8 +33,8 @@ of J on them exceed the tolerance, the 8 Kronrod nodes join (G7-K15), and where 
 disagree by more than the tolerance allows the step is halved (at most 6 times). A step seen through a view
 transmittance e^-u adds its error to the image times e^-u, so the step limits grow as e^(growth u) (issue #23
 item 3: on the 77-ball cumulus at 256 x 256 this took 1.6-1.9x fewer nodes at equal error, on the 1,200-ball
-bank none; docs/error_estimate.md "Steps that grow with depth"); ``reference`` keeps equal steps. The optical depth, the
-view transmittance and the shadow transmittance are exact at every setting; the settings only trade the
+bank none; docs/error_estimate.md "Steps that grow with depth"); ``reference`` keeps equal steps. The optical
+depth, the view transmittance and the shadow transmittance are exact at every setting; the settings only trade the
 quadrature of the in-scattering integral against time.
 
 Opaque surfaces (``surfaces:``, docs/model.md §6) are exact at every setting too: the first root of each
