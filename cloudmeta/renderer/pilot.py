@@ -22,8 +22,8 @@ suite). A preset's fixed settings keep its target on the hardest scenes of the a
 several times too much work on easy ones: the shipped cumulus at ``default`` lands at 1.2e-4 against its 1e-3.
 Where ``calibrates`` holds, a calibration grid of the frame's rays (``calibration_size``) is rendered on one
 ladder of settings, LADDER's preset scaled by ``level`` steps of renderer.estimate's factors
-(``scaled_quality``), each preset starting at START: one step below the start (the calibration's reference),
-then above it. The frame takes the coarsest level, up to MAX_LEVEL above the start, whose relative RMSE
+(``scaled_quality``), each preset starting at START: one step below the start (the calibration's reference,
+with exact shadow rays even under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to MAX_LEVEL above the start, whose relative RMSE
 against that reference is at most SHARE of the target (``calibrated_level``). Where the start itself measures
 above that, the frame is rendered up to one step finer. Like the scale, the level depends on the whole frame.
 """
@@ -211,11 +211,14 @@ def calibrate(scene, packed, quality, scale):
     start = START[scene.render.quality]
     counts = {}  # level -> the grid's per-pixel counts (nodes, exact rays, lookups, trusted lookups)
 
-    def pilot_at(level):
-        image, counts[level] = pilot_render(scene, packed, scaled_quality(ladder, start + level), size)
+    def pilot_at(level, exact=False):
+        q = scaled_quality(ladder, start + level)
+        image, counts[level] = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
         return image[..., :3].astype(np.float64)
 
-    reference = pilot_at(-1.0)
+    # the reference traces exact shadow rays: a hybrid map's error, which need not shrink with the tolerance
+    # (a puff between texel rays), then counts in full in every level's measure
+    reference = pilot_at(-1.0, exact=True)
     mean = float(reference.mean())
     if mean <= 0.0:
         return quality, scale

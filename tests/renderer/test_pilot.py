@@ -154,3 +154,24 @@ def test_hybrid_shadows_trace_exact_rays_where_the_calibration_trusted_few_looku
         assert cost["trusted"] > 0.2 * cost["nodes"]
     else:
         assert cost["lookups"] == 0.0 and cost["exact_rays"] == cost["nodes"]
+
+
+def test_hybrid_calibration_measures_against_a_reference_with_exact_shadow_rays(monkeypatch):
+    """shadows: hybrid: the calibration's reference (one step below the start) traces exact shadow rays, so a
+    map's error counts in full in each level's measure; the levels themselves keep the maps."""
+    from cloudmeta.renderer import pilot
+    seen = []
+    original = pilot.pilot_render
+
+    def recording(scene, packed, quality, size=None):
+        seen.append((quality.map_share, quality.tolerance, size is not None))
+        return original(scene, packed, quality, size)
+
+    monkeypatch.setattr(pilot, "pilot_render", recording)
+    s = cm.load_scene(ROOT / "scenes" / "cumulus.yaml", width=48, height=40)
+    r = render_frame(replace(s, render=replace(s.render, shadows="hybrid")), progress=False)
+    grid = [(share, tol) for share, tol, on_grid in seen if on_grid]
+    reference = min(grid, key=lambda st: st[1])  # the finest tolerance: level -1
+    assert reference[0] == 0.0
+    assert all(share > 0.0 for share, tol in grid if tol > reference[1])
+    assert r.scattered.trusted >= MIN_TRUSTED
