@@ -117,7 +117,6 @@ def plot(rows, out):
     plt = pyplot()
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     fig, axes = plt.subplots(1, len(scenes), figsize=(6.2 * len(scenes), 4.8), sharey=True, squeeze=False)
-    offsets = ((5, 4), (5, -11), (-10, 9), (5, 12), (-10, -14))
     for k, (ax, scene) in enumerate(zip(axes[0], scenes)):
         colour = f"C{k}"
         pts = sorted([r for r in rows if r["scene"] == scene
@@ -125,12 +124,9 @@ def plot(rows, out):
         front = [r for r in pts if r["pareto"]]
         ax.plot([r["seconds"] for r in front], [r["rel_rmse"] for r in front], "-", color=colour, lw=1.2,
                 label="Pareto front")
-        for j, r in enumerate(pts):
+        for r in pts:
             marker = "s" if "map" in r["setting"] else "o"
             ax.plot(r["seconds"], r["rel_rmse"], marker, color=colour, mfc=colour if r["pareto"] else "none")
-            ax.annotate(r["setting"], (r["seconds"], r["rel_rmse"]), textcoords="offset points",
-                        xytext=offsets[j % len(offsets)], fontsize=7, color="k",
-                        ha="left" if offsets[j % len(offsets)][0] > 0 else "right")
         ref = [r for r in rows if r["scene"] == scene and r["setting"] == "reference"][0]
         ax.axvline(ref["seconds"], color=colour, ls=":", lw=0.8)
         ax.annotate(f"reference: {ref['seconds']:.0f} s", (ref["seconds"], 0.97), xycoords=("data", "axes fraction"),
@@ -143,10 +139,50 @@ def plot(rows, out):
         ax.set_xlabel(f"wall time [s], {ref['size']} x {ref['size']} pixels (2 cores)")
         ax.set_title(scene, fontsize=10)
         ax.legend(fontsize=7, loc="lower left")
+    fig.canvas.draw()  # the axes' limits and scales fixed: the labels are placed in display space
+    for ax, scene in zip(axes[0], scenes):
+        pts = [r for r in rows if r["scene"] == scene and r["setting"] not in ("reference", "reference vs tighter")]
+        place_labels(ax, [(r["seconds"], r["rel_rmse"]) for r in pts], [r["setting"] for r in pts], fontsize=7)
     axes[0][0].set_ylabel("RMSE against the reference setting / mean scattered radiance")
     fig.suptitle("cloudmeta: time against error (circles: exact shadow rays, squares: shadow maps; "
                  "filled: on the Pareto front)", fontsize=9)
     save_figure(fig, out, dpi=130)
+
+
+#: where a label may sit, in points from its marker (right, left, above, below, then the diagonals)
+LABEL_OFFSETS = ((6, -3), (-6, -3), (0, 7), (0, -13), (6, 6), (-6, 6), (6, -12), (-6, -12), (10, 14), (-10, 14),
+                 (10, -20), (-10, -20))
+
+
+def place_labels(ax, points, labels, fontsize):
+    """Annotate each point with its label at the first of LABEL_OFFSETS whose box overlaps no label placed
+    before it, no marker and no panel edge (else the least overlapping); boxes estimated from the font size."""
+    to_px = ax.figure.dpi / 72.0
+    xy = [ax.transData.transform(p) for p in points]
+    bounds = ax.bbox.extents
+    marks = [(x - 4 * to_px, y - 4 * to_px, x + 4 * to_px, y + 4 * to_px) for x, y in xy]
+    placed = []
+
+    def overlap(a, b):
+        return max(0.0, min(a[2], b[2]) - max(a[0], b[0])) * max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+
+    for (x, y), text, point in sorted(zip(xy, labels, points), key=lambda q: q[0][0]):
+        w, h = 0.52 * fontsize * len(text) * to_px, fontsize * to_px
+        best = None
+        for dx, dy in LABEL_OFFSETS:
+            x0 = x + dx * to_px - (w if dx < 0 else (w / 2 if dx == 0 else 0.0))
+            y0 = y + dy * to_px
+            box = (x0, y0, x0 + w, y0 + h)
+            cost = sum(overlap(box, b) for b in placed + marks)
+            cost += w * h * (box[0] < bounds[0] or box[2] > bounds[2] or box[1] < bounds[1] or box[3] > bounds[3])
+            if best is None or cost < best[0]:
+                best = (cost, dx, dy, box)
+            if cost == 0.0:
+                break
+        _, dx, dy, box = best
+        placed.append(box)
+        ax.annotate(text, point, textcoords="offset points", xytext=(dx, dy), fontsize=fontsize, color="k",
+                    ha="right" if dx < 0 else ("center" if dx == 0 else "left"), va="bottom")
 
 
 def read_rows(path=RESULTS / "time_vs_error.csv"):
