@@ -23,7 +23,7 @@ several times too much work on easy ones: the shipped cumulus at ``default`` lan
 Where ``calibrates`` holds, a calibration grid of the frame's rays (``calibration_size``) is rendered on one
 ladder of settings, LADDER's preset scaled by ``level`` steps of renderer.estimate's factors
 (``scaled_quality``), each preset starting at START: one step below the start (the calibration's reference,
-with exact shadow rays even under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to MAX_LEVEL above the start, whose relative RMSE
+with exact shadow rays under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to MAX_LEVEL above the start, whose relative RMSE
 against that reference is at most SHARE of the target (``calibrated_level``). Where the start itself measures
 above that, the frame is rendered up to one step finer. Like the scale, the level depends on the whole frame.
 """
@@ -216,9 +216,10 @@ def calibrate(scene, packed, quality, scale):
         image, counts[level] = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
         return image[..., :3].astype(np.float64)
 
-    # the reference traces exact shadow rays: a hybrid map's error, which need not shrink with the tolerance
-    # (a puff between texel rays), then counts in full in every level's measure
-    reference = pilot_at(-1.0, exact=True)
+    # with hybrid shadows the reference traces exact shadow rays: a hybrid map's error, which need not shrink
+    # with the tolerance (a puff between texel rays), then counts in full in every level's measure (``shadows:
+    # map`` always interpolates: its error is the user's choice, and the calibration scales the quadrature)
+    reference = pilot_at(-1.0, exact=0.0 < quality.map_share < math.inf)
     mean = float(reference.mean())
     if mean <= 0.0:
         return quality, scale

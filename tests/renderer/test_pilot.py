@@ -175,3 +175,7 @@ def test_hybrid_calibration_measures_against_a_reference_with_exact_shadow_rays(
     assert reference[0] == 0.0
     assert all(share > 0.0 for share, tol in grid if tol > reference[1])
     assert r.scattered.trusted >= MIN_TRUSTED
+    seen.clear()  # shadows: map interpolates everywhere, the reference too: the calibration scales the quadrature
+    render_frame(replace(s, render=replace(s.render, shadows="map")), progress=False)
+    assert seen and all(share == math.inf for share, _, on_grid in seen if on_grid)
+
