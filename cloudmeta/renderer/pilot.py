@@ -23,9 +23,10 @@ several times too much work on easy ones: the shipped cumulus at ``default`` lan
 Where ``calibrates`` holds, a calibration grid of the frame's rays (``calibration_size``) is rendered on one
 ladder of settings, LADDER's preset scaled by ``level`` steps of renderer.estimate's factors
 (``scaled_quality``), each preset starting at START: one step below the start (the calibration's reference,
-with exact shadow rays under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to MAX_LEVEL above the start, whose relative RMSE
-against that reference is at most SHARE of the target (``calibrated_level``). Where the start itself measures
-above that, the frame is rendered up to one step finer. Like the scale, the level depends on the whole frame.
+with exact shadow rays under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to
+MAX_LEVEL above the start, whose relative RMSE against that reference is at most SHARE of the target
+(``calibrated_level``). Where the start itself measures above that, the frame is rendered up to one step finer.
+Like the scale, the level depends on the whole frame.
 """
 from __future__ import annotations
 
@@ -219,6 +220,7 @@ def calibrate(scene, packed, quality, scale):
     # with hybrid shadows the reference traces exact shadow rays: a hybrid map's error, which need not shrink
     # with the tolerance (a puff between texel rays), then counts in full in every level's measure (``shadows:
     # map`` always interpolates: its error is the user's choice, and the calibration scales the quadrature)
+    # (a hybrid frame calibrated to level -1 thus counts no trusted lookups there, and traces exact rays)
     reference = pilot_at(-1.0, exact=0.0 < quality.map_share < math.inf)
     mean = float(reference.mean())
     if mean <= 0.0:

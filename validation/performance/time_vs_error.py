@@ -117,10 +117,12 @@ def plot(rows, out):
     plt = pyplot()
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     fig, axes = plt.subplots(1, len(scenes), figsize=(6.2 * len(scenes), 4.8), sharey=True, squeeze=False)
+    panels = []  # (axes, the scene's settings): labelled once every panel's limits are fixed
     for k, (ax, scene) in enumerate(zip(axes[0], scenes)):
         colour = f"C{k}"
         pts = sorted([r for r in rows if r["scene"] == scene
                       and r["setting"] not in ("reference", "reference vs tighter")], key=lambda r: r["seconds"])
+        panels.append((ax, pts))
         front = [r for r in pts if r["pareto"]]
         ax.plot([r["seconds"] for r in front], [r["rel_rmse"] for r in front], "-", color=colour, lw=1.2,
                 label="Pareto front")
@@ -140,8 +142,7 @@ def plot(rows, out):
         ax.set_title(scene, fontsize=10)
         ax.legend(fontsize=7, loc="lower left")
     fig.canvas.draw()  # the axes' limits and scales fixed: the labels are placed in display space
-    for ax, scene in zip(axes[0], scenes):
-        pts = [r for r in rows if r["scene"] == scene and r["setting"] not in ("reference", "reference vs tighter")]
+    for ax, pts in panels:
         place_labels(ax, [(r["seconds"], r["rel_rmse"]) for r in pts], [r["setting"] for r in pts], fontsize=7)
     axes[0][0].set_ylabel("RMSE against the reference setting / mean scattered radiance")
     fig.suptitle("cloudmeta: time against error (circles: exact shadow rays, squares: shadow maps; "
