@@ -26,7 +26,8 @@ ladder of settings, LADDER's preset scaled by ``level`` steps of renderer.estima
 with exact shadow rays under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to
 MAX_LEVEL above the start, whose relative RMSE against that reference is at most SHARE of the target
 (``calibrated_level``). Where the start itself measures above that, the frame is rendered up to one step finer.
-Like the scale, the level depends on the whole frame.
+Under ``shadows: hybrid``, a grid that trusts fewer than MIN_TRUSTED of its lookups turns the frame to exact
+shadow rays, and the search starts again with exact rays. Like the scale, the level depends on the whole frame.
 """
 from __future__ import annotations
 
@@ -210,34 +211,59 @@ def calibrate(scene, packed, quality, scale):
     on_ladder = resolve_quality(replace(scene.render, quality=LADDER), scene.length_scale())
     ladder = replace(quality, **{key: getattr(on_ladder, key) for key in QUADRATURE_KEYS})
     start = START[scene.render.quality]
-    counts = {}  # level -> the grid's per-pixel counts (nodes, exact rays, lookups, trusted lookups)
+    # (level, exact) -> the grid's image and its per-pixel counts (nodes, exact rays, lookups, trusted lookups): a
+    # search restarted with exact rays reuses its renders
+    images = {}
+    counts = {}
 
     def pilot_at(level, exact=False):
-        q = scaled_quality(ladder, start + level)
-        image, counts[level] = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
-        return image[..., :3].astype(np.float64)
+        if (level, exact) not in images:
+            q = scaled_quality(ladder, start + level)
+            image, counts[level, exact] = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
+            images[level, exact] = image[..., :3].astype(np.float64)
+        return images[level, exact]
 
     # with hybrid shadows the reference traces exact shadow rays: a hybrid map's error, which need not shrink
     # with the tolerance (a puff between texel rays), then counts in full in every level's measure (``shadows:
     # map`` always interpolates: its error is the user's choice, and the calibration scales the quadrature)
-    # (a hybrid frame calibrated to level -1 thus counts no trusted lookups there, and traces exact rays)
-    reference = pilot_at(-1.0, exact=0.0 < quality.map_share < math.inf)
+    hybrid = 0.0 < quality.map_share < math.inf
+    reference = pilot_at(-1.0, exact=hybrid)
     mean = float(reference.mean())
     if mean <= 0.0:
         return quality, scale
+    # a hybrid grid that trusts fewer than MIN_TRUSTED of its lookups makes the frame trace exact rays: the search
+    # then starts again with exact rays, so that the level is not chosen by the error of lookups the frame refuses
+    exact_from = []  # the share trusted where the search turned to exact rays
 
     def error_at(level):
-        return float(np.sqrt(np.mean((pilot_at(level) - reference) ** 2))) / mean
+        image = pilot_at(level, exact=bool(exact_from))
+        if hybrid and not exact_from and trusted_share(counts[level, False]) < MIN_TRUSTED:
+            exact_from.append(trusted_share(counts[level, False]))
+            raise _ExactRays
+        return float(np.sqrt(np.mean((image - reference) ** 2))) / mean
 
-    level, predicted = calibrated_level(error_at, target)
+    try:
+        level, predicted = calibrated_level(error_at, target)
+    except _ExactRays:
+        level, predicted = calibrated_level(error_at, target)
     chosen = scaled_quality(ladder, start + level)
     trusted = None
-    if 0.0 < quality.map_share < math.inf:  # shadows: hybrid; the grid rendered at every level it returns
-        tally = counts[level].sum(axis=(0, 1))
-        trusted = float(tally[3] / tally[2]) if tally[2] > 0.0 else 0.0
-        if trusted < MIN_TRUSTED:  # the lookups would cost more than they spare: exact rays (only more exact)
+    if hybrid:
+        trusted = exact_from[0] if exact_from else trusted_share(counts[level, level == -1.0])
+        # exact rays where the lookups would cost more than they spare, and at level -1 (the reference's own)
+        if exact_from or level == -1.0 or trusted < MIN_TRUSTED:
             chosen = replace(chosen, map_share=0.0)
     return chosen, replace(scale, level=start + level, predicted=predicted, rays=size[0] * size[1], trusted=trusted)
+
+
+class _ExactRays(Exception):
+    """Raised by the calibration's search where a hybrid grid trusts too few lookups (``calibrate``)."""
+
+
+def trusted_share(counts):
+    """The share of a grid's map lookups it trusted, from its per-pixel counts (0 without lookups)."""
+    tally = counts.sum(axis=(0, 1))
+    return float(tally[3] / tally[2]) if tally[2] > 0.0 else 0.0
 
 
 def pilot_quality(scene, packed, quality):
