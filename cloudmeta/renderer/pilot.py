@@ -237,9 +237,11 @@ def calibrate(scene, packed, quality, scale):
 
     def error_at(level):
         image = pilot_at(level, exact=bool(exact_from))
-        if hybrid and not exact_from and trusted_share(counts[level, False]) < MIN_TRUSTED:
-            exact_from.append(trusted_share(counts[level, False]))
-            raise _ExactRays
+        if hybrid and not exact_from:
+            share = trusted_share(counts[level, False])
+            if share < MIN_TRUSTED:
+                exact_from.append(share)
+                raise _ExactRays
         return float(np.sqrt(np.mean((image - reference) ** 2))) / mean
 
     try:
@@ -249,9 +251,9 @@ def calibrate(scene, packed, quality, scale):
     chosen = scaled_quality(ladder, start + level)
     trusted = None
     if hybrid:
+        # (level -1 is the exact reference's render: no lookups, so exact rays)
         trusted = exact_from[0] if exact_from else trusted_share(counts[level, level == -1.0])
-        # exact rays where the lookups would cost more than they spare, and at level -1 (the reference's own)
-        if exact_from or level == -1.0 or trusted < MIN_TRUSTED:
+        if trusted < MIN_TRUSTED:  # the lookups would cost more than they spare: exact rays (only more exact)
             chosen = replace(chosen, map_share=0.0)
     return chosen, replace(scale, level=start + level, predicted=predicted, rays=size[0] * size[1], trusted=trusted)
 

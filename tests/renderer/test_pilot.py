@@ -180,7 +180,6 @@ def test_hybrid_calibration_measures_against_a_reference_with_exact_shadow_rays(
     assert seen and all(share == math.inf for share, _, on_grid in seen if on_grid)
 
 
-
 def test_hybrid_calibration_that_turns_to_exact_rays_chooses_the_exact_level(monkeypatch):
     """shadows: hybrid: where a level's grid trusts fewer than MIN_TRUSTED of its lookups the frame traces exact
     rays, so the search starts again with exact rays: the level is then the one exact shadows get, not one chosen
