@@ -21,6 +21,11 @@ COUNT_NODES = 0         # quadrature nodes (kernels.single.source_at)
 COUNT_EXACT = 1         # exact shadow rays through the media
 COUNT_LOOKUPS = 2       # shadow-map lookups
 COUNT_TRUSTED = 3       # lookups whose interpolation was kept (no exact ray)
+COUNT_STEPS = 4         # quadrature steps and parts of steps (kernels.single.step_in_scattering)
+COUNT_KRONROD = 5       # of them, those that took the 8 Kronrod nodes
+COUNT_SPLITS = 6        # of them, those split (halved, or cut at a fold)
+COUNT_FOLDS = 7         # of the splits, those cut around a fold of the light's optical depth
+N_COUNTS = 8
 
 
 @njit(**NJIT_INLINE)
@@ -56,7 +61,8 @@ def light_geometry(lights, li, pos, l_dir):
 #: inlined: a call per quadrature node would count references to every array of the scene records
 @njit(**NJIT_INLINE)
 def light_at_node(pos, shadow_from, v, facing_only, tau_stop, j_tol, scene, tol_t, scratch, work):
-    """Per light: work.nodes.light[li, 0] = l . v, [li, 1:4] = E_l T_l at pos, [li, 4] = T_l. v is the view direction
+    """Per light: work.nodes.light[li, 0] = l . v, [li, 1:4] = E_l T_l at pos, [li, 4] = T_l, [li, 5] = the exact shadow
+    ray's entries into the media (-1 where T_l came from a map or a surface blocked it). v is the view direction
     at a medium's node (l . v = cos theta of the phase function), the normal at a surface point; with
     facing_only, lights with l . v <= 0 get E_l T_l = 0 and no shadow ray (they cannot light the side of
     a surface facing away). The shadow ray starts at shadow_from (pos, or a surface point lifted off its
@@ -74,6 +80,7 @@ def light_at_node(pos, shadow_from, v, facing_only, tau_stop, j_tol, scene, tol_
         e_scale, l_max = light_geometry(lights, li, pos, l_dir)
         cos_lv = l_dir[0] * v[0] + l_dir[1] * v[1] + l_dir[2] * v[2]
         light_buf[li, 0] = cos_lv
+        light_buf[li, 5] = -1.0
         if facing_only and cos_lv <= 0.0:
             for c in range(4):
                 light_buf[li, 1 + c] = 0.0
@@ -102,8 +109,9 @@ def light_at_node(pos, shadow_from, v, facing_only, tau_stop, j_tol, scene, tol_
                 count[COUNT_TRUSTED] += 1.0
         if t_l < 0.0:
             count[COUNT_EXACT] += 1.0
-            scratch, t_l = shadow_transmittance(shadow_from, l_dir, l_max, scene.media, tol_t, tau_stop, scratch,
-                                                work.cand, work.stack)
+            scratch, t_l, entries = shadow_transmittance(shadow_from, l_dir, l_max, scene.media, tol_t, tau_stop,
+                                                         scratch, work.cand, work.stack)
+            light_buf[li, 5] = entries
         for c in range(3):
             light_buf[li, 1 + c] = lights.rgb[li, c] * e_scale * t_l
         light_buf[li, 4] = t_l

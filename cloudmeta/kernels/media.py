@@ -87,15 +87,18 @@ def collect_media(o, d, tmax, med, tol_t, scratch, rp, cand, stack):
 @njit(**NJIT)
 def shadow_transmittance(x, l, tmax, med, tol_t, tau_stop, scratch, cand, stack):
     """T_l = exp(-tau) from x along l up to tmax through every medium; stops once tau > tau_stop. The
-    depth only, without the pieces (kernels.shadow: the fused sweep)."""
+    depth only, without the pieces (kernels.shadow: the fused sweep). Returns (scratch, T_l, the ray's
+    entries into the media, counted until it stopped)."""
     tau = 0.0
+    entries = 0
     for m in range(n_media(med)):
         n_cand = bvh_candidates(x, l, 0.0, tmax, med.bvh, med.bvh.root[m], stack, cand)
         if n_cand == 0:
             continue
-        scratch, rho_m = column_density(x, l, 0.0, tmax, medium_blob(med, m), med.mode[m], tol_t, cand, n_cand,
-                                        scratch)
+        scratch, rho_m, n_in = column_density(x, l, 0.0, tmax, medium_blob(med, m), med.mode[m], tol_t, cand,
+                                              n_cand, scratch)
         tau += med.scale[m] * rho_m
+        entries += n_in
         if tau > tau_stop:
             break
-    return scratch, math.exp(-tau)
+    return scratch, math.exp(-tau), entries

@@ -221,7 +221,8 @@ def light_transmittance(x, l_dir, l_max, li, scene, grid, volumes, key, vertex, 
     p = min(1.0, CV_PROBABILITY + (math.exp(-tau_lo) - math.exp(-tau_hi)))
     if uniform(key.seed, key.pixel, key.path, vertex, dim - 1) >= p:
         return scratch, t_map
-    scratch, t_l = shadow_transmittance(x, l_dir, l_max, scene.media, tol_t, TAU_STOP, scratch, work.cand, work.stack)
+    scratch, t_l, _ = shadow_transmittance(x, l_dir, l_max, scene.media, tol_t, TAU_STOP, scratch, work.cand,
+                                           work.stack)
     return scratch, t_map + (t_l - t_map) / p
 
 

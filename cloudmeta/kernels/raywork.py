@@ -7,6 +7,7 @@ from .bernstein import NCOEF, bernstein_cumulative, bernstein_mean, subdivide
 from .bvh import STACK
 from .config import NJIT, NJIT_INLINE
 from .features import surface_balls
+from .lighting import N_COUNTS
 from .media import alloc_ray_pieces, n_media
 from .records import NodeWork, RayWork
 from .sweep import advance_active, alloc_scratch, sort_breakpoints
@@ -18,10 +19,10 @@ MAX_NODES = 16
 @njit(**NJIT)
 def alloc_node_work(n_lights):
     """The small per-ray work vectors of the radiance kernels (a records.NodeWork)."""
-    return NodeWork(light=np.empty((n_lights, 5)), pos=np.empty(3), l_dir=np.empty(3), x=np.empty(3),
+    return NodeWork(light=np.empty((n_lights, 6)), pos=np.empty(3), l_dir=np.empty(3), x=np.empty(3),
                     normal=np.empty(3), x_off=np.empty(3), node_w=np.empty(MAX_NODES),
-                    j_val=np.empty((3, MAX_NODES)), split_u=np.empty(MAX_NODES), split_depth=np.empty(MAX_NODES),
-                    count=np.zeros(4))
+                    j_val=np.empty((4, MAX_NODES)), split_u=np.empty(MAX_NODES),
+                    split_h=np.empty(MAX_NODES), split_depth=np.empty(MAX_NODES), count=np.zeros(N_COUNTS))
 
 
 @njit(**NJIT)

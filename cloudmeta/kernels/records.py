@@ -133,13 +133,16 @@ SweepScratch = namedtuple("SweepScratch", ["chord_t0", "chord_t1", "chord_c", "b
 RayPieces = namedtuple("RayPieces", ["t0", "t1", "c", "medium", "bp", "order", "act", "el_t0", "el_t1", "el_u0",
                                      "el_S", "el_sig"])
 
-#: small per-ray work vectors of the radiance kernels (kernels.raywork.alloc_node_work): light (L, 4) =
-#: per light l . v and E_l T_l (r, g, b) at the current node; pos and l_dir at a node; x, normal and
-#: x_off (x lifted off the surface) at a surface hit; node_w the product-integration weights of a step;
-#: j_val (3, nodes) J at the nodes of a step; split_u and split_depth the parts of a step still to do; count
-#: (4,) what the light at the nodes cost so far on this thread (kernels.lighting.COUNT_*)
-NodeWork = namedtuple("NodeWork", ["light", "pos", "l_dir", "x", "normal", "x_off", "node_w", "j_val", "split_u",
-                                   "split_depth", "count"])
+#: small per-ray work vectors of the radiance kernels (kernels.raywork.alloc_node_work): light (L, 6) =
+#: per light l . v, E_l T_l (r, g, b), T_l and its shadow ray's entries into the media at the current node; pos and
+#: l_dir at a node; x, normal and x_off (x lifted off the surface) at a surface hit; node_w the product-integration
+#: weights of a step; j_val (4, nodes) J (r, g, b) at the nodes of a step and the entries of their shadow rays
+#: (kernels.single.node_topology; -1: unknown); split_u, split_h and split_depth the parts of a step still to do
+#: (start, width, halvings deep); count (N_COUNTS,) what the light at the nodes cost so far on this thread
+#: (kernels.lighting.COUNT_*). (The entries were a field of their own first: read through the inlined node code,
+#: it held garbage, numba 0.68.1, cause not found; as j_val's fourth row they are read right.)
+NodeWork = namedtuple("NodeWork", ["light", "pos", "l_dir", "x", "normal", "x_off", "node_w", "j_val",
+                                   "split_u", "split_h", "split_depth", "count"])
 
 #: everything one thread's camera rays reuse: SweepScratch (grows), RayPieces (grows), the BVH's
 #: candidate list and walk stack, NodeWork

@@ -15,6 +15,10 @@ about one that straddles T. Here each of composite's intervals is classed by its
 The integral of rho is affine in that of F (docs/model.md §4), so all three density modes come from the
 integral of F and the inside length. The same polynomials and roots as the full sweep, summed in another
 order: the depth agrees to rounding (tests/kernels/test_shadow.py).
+
+The pass also counts the ray's entries into {F >= T}. Along a camera ray that count changes exactly where a
+shadow line grazes the isosurface: a fold of the light's optical depth, which the quadrature cuts at
+(kernels.single ``step_in_scattering``).
 """
 from numba import njit
 
@@ -32,12 +36,14 @@ def _antiderivative(g, s, threshold):
 
 
 @njit(**NJIT)
-def straddling_interval(w, threshold, tol_t, mag, scratch):
+def straddling_interval(w, threshold, tol_t, mag, was_inside, scratch):
     """The inside parts of an interval of length w whose hull straddles T (scratch.g: F - T on it; mag
-    the magnitude of its control values): classes and roots as inside_pieces takes them. Returns (int of F
-    over the inside parts, their length)."""
+    the magnitude of its control values): classes and roots as inside_pieces takes them. was_inside: the
+    class just before it. Returns (int of F over the inside parts, their length, the entries into the
+    inside in it, the class at its end)."""
     g = scratch.g
     inside = g[0] >= 0.0  # the class at its start (a jump at a chord end counts)
+    entries = 1 if inside and not was_inside else 0
     n_r = clip_roots(g, tol_t / w, NOISE * (threshold + mag), scratch.st_lo, scratch.st_hi, scratch.st_c,
                      scratch.loc, scratch.rising)
     f_int = 0.0
@@ -52,11 +58,13 @@ def straddling_interval(w, threshold, tol_t, mag, scratch):
             span += s - s_in
         else:
             s_in = s
+            entries += 1
         inside = scratch.rising[j]
+    end_inside = inside
     if inside:
         f_int += _antiderivative(g, 1.0, threshold) - _antiderivative(g, s_in, threshold)
         span += 1.0 - s_in
-    return w * f_int, w * span
+    return w * f_int, w * span, entries, end_inside
 
 
 @njit(**NJIT)
@@ -64,11 +72,16 @@ def intervals_depth(n_iv, threshold, mode, tol_t, scratch):
     """int rho over {F >= T} on the n_iv composite intervals in the scratch (``composite``'s), rho by density
     ``mode``: each classed as ``inside_pieces`` classes it and integrated without cutting out its pieces.
     (The class carried from one interval to the next, which inside_pieces needs for its transitions, does
-    not change the measure: each interval starts in the class of F at its start.)"""
+    not change the measure: each interval starts in the class of F at its start.) Returns (the integral, the
+    number of entries into the inside: an interval that starts inside after a gap or an outside part enters)."""
     iv_t0, iv_t1, iv_c, iv_mag, g = scratch.iv_t0, scratch.iv_t1, scratch.iv_c, scratch.iv_mag, scratch.g
     f_int = 0.0
     length = 0.0
+    entries = 0
+    inside = False  # the class at the end of the last interval (F = 0 < T between chords)
     for k in range(n_iv):
+        if k > 0 and iv_t0[k] > iv_t1[k - 1]:
+            inside = False
         w = iv_t1[k] - iv_t0[k]
         lo = iv_c[k, 0]
         hi = iv_c[k, 0]
@@ -81,25 +94,33 @@ def intervals_depth(n_iv, threshold, mode, tol_t, scratch):
             # the hull lies above T: wholly inside (clip_roots would find no root)
             f_int += w * (mean * (1.0 / NCOEF))
             length += w
-        elif hi - threshold >= 0.0:  # else the hull lies below T: wholly outside
+            if not inside:
+                entries += 1
+            inside = True
+        elif hi - threshold >= 0.0:
             for q in range(NCOEF):
                 g[q] = iv_c[k, q] - threshold
-            f_part, span = straddling_interval(w, threshold, tol_t, iv_mag[k] * NCOEF, scratch)
+            f_part, span, n_in, inside = straddling_interval(w, threshold, tol_t, iv_mag[k] * NCOEF, inside, scratch)
             f_int += f_part
             length += span
-    return rho_integral(f_int, length, mode, threshold)
+            entries += n_in
+        else:  # the hull lies below T: wholly outside
+            inside = False
+    return rho_integral(f_int, length, mode, threshold), entries
 
 
 @njit(**NJIT)
 def column_density(o, d, tmin, tmax, blob, mode, tol_t, cand, n_cand, scratch):
     """The integral of rho over {F >= T} along the ray within [tmin, tmax] through ``blob`` (its balls
     cand[:n_cand]), rho by density ``mode`` (docs/model.md §4): the optical depth over the medium's scale.
-    Grows the scratch when the ray meets more chords than it holds. Returns (scratch, the integral)."""
+    Grows the scratch when the ray meets more chords than it holds. Returns (scratch, the integral, the
+    entries into the medium)."""
     n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p > capacity_of(scratch):
         scratch = alloc_scratch(2 * n_p)
         gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p == 0:
-        return scratch, 0.0
+        return scratch, 0.0, 0
     n_iv = composite(n_p, tmin, tmax, scratch)
-    return scratch, intervals_depth(n_iv, blob.threshold, mode, tol_t, scratch)
+    rho, entries = intervals_depth(n_iv, blob.threshold, mode, tol_t, scratch)
+    return scratch, rho, entries

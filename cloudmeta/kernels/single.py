@@ -18,7 +18,8 @@ single_scattering runs five stages, each a function with one job:
    all, as Bernstein polynomials, and the exact optical depth tau(0, t) from the ray's start;
 4. ``in_scattering``: the in-scattering integral over each inside segment (``segment_in_scattering``: a
    run of adjacent intervals, cut at equal angles seen from point lights), step by step
-   (``step_in_scattering``: the adaptive G7-K15 rule on one step), J at each node (``source_at``) from
+   (``step_in_scattering``: the adaptive G7-K15 rule on one step, split around folds of the light's optical
+   depth where its shadow rays' entries into the media change), J at each node (``source_at``) from
    the light reaching it (``light_at_node``: E_l T_l per light, exact shadow rays or shadow maps);
 5. ``ray_end``: L_end T(0, t_end), the background or the shaded surface (``shade_surface``).
 
@@ -68,15 +69,16 @@ from .borrow import borrow, hold_grown, release
 from .bvh import misses_root_boxes
 from .camera import background_radiance, background_sample, camera_ray
 from .features import grid_light, has_grid, misses_surfaces, surface_hit
-from .lighting import COUNT_NODES, angular_cuts, light_at_node
+from .lighting import (COUNT_FOLDS, COUNT_KRONROD, COUNT_NODES, COUNT_SPLITS, COUNT_STEPS, angular_cuts,
+                       light_at_node)
 from .media import collect_media
 from .optics import phase
 from .records import RayWork, StepState
 from .raywork import alloc_ray_work, depth_at, elementary_intervals
 from .surfaces import SHADOW_OFFSET, surface_normal
 
-#: a step is halved at most this often where its Kronrod and Gauss results disagree (the pending halves
-#: fit the MAX_NODES slots of a work row)
+#: a step is split at most this deep where its Kronrod and Gauss results disagree (the pending parts, at most
+#: 2 per level, fit the MAX_NODES slots of a work row)
 MAX_SPLITS = 6
 
 
@@ -140,9 +142,54 @@ def octave_phase(octaves, phase_row, cos_lv, t_l):
 
 
 @njit(**NJIT_INLINE)
+def node_topology(light_buf):
+    """One number for the shadow rays' entries into the media at a node, every light's count in its own digits
+    (base 4096); -1 where a light's T_l did not come from an exact ray. Two nodes with different numbers have
+    a fold of some light's optical depth between them."""
+    signature = 0.0
+    place = 1.0
+    for li in range(light_buf.shape[0]):
+        if light_buf[li, 5] < 0.0:
+            return -1.0
+        signature += place * min(light_buf[li, 5], 4095.0)
+        place *= 4096.0
+    return signature
+
+
+@njit(**NJIT_INLINE)
+def fold_bracket(topo_row, n):
+    """The first i < n - 1 where nodes i and i + 1 (in increasing u) both know their shadow rays' entries
+    (node_topology) and these differ: a fold of the light's optical depth lies between them. -1 where none
+    does. (Only where exactly one pair differed, the splits measured the same: 40.7 against 40.4 nodes per
+    media pixel on the bank.)"""
+    for q in range(n - 1):
+        if topo_row[q] >= 0.0 and topo_row[q + 1] >= 0.0 and topo_row[q] != topo_row[q + 1]:
+            return q
+    return -1
+
+
+@njit(**NJIT_INLINE)
+def push_fold_parts(split_u, split_h, split_depth, top, u_step, hh, depth, x_lo, x_hi):
+    """Push the parts [x_hi, 1], [x_lo, x_hi] and [0, x_lo] of the part [u_step, u_step + hh] (in units of hh) on
+    the work row's pending parts, the first to be done last; depth grows by log2 of each part's share (a
+    narrow part counts as several halvings). Returns the new top."""
+    split_u[top + 1] = u_step + x_hi * hh
+    split_h[top + 1] = (1.0 - x_hi) * hh
+    split_depth[top + 1] = depth - math.log2(1.0 - x_hi)
+    split_u[top + 2] = u_step + x_lo * hh
+    split_h[top + 2] = (x_hi - x_lo) * hh
+    split_depth[top + 2] = depth - math.log2(x_hi - x_lo)
+    split_u[top + 3] = u_step
+    split_h[top + 3] = x_lo * hh
+    split_depth[top + 3] = depth - math.log2(x_lo)
+    return top + 3
+
+
+@njit(**NJIT_INLINE)
 def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     """work.nodes.j_val[:3, col] = J at optical depth u of the view ray: sum over media of
-    (sigma_s / sigma_t) times (sum over lights of phase E_l T_l, plus the ambient radiance).
+    (sigma_s / sigma_t) times (sum over lights of phase E_l T_l, plus the ambient radiance); j_val[3, col] =
+    node_topology of its shadow rays.
     cursor = (k, s_prev, u_prev) locates the previous node (nodes come in increasing u, within the
     segment's intervals below k_b); returns (scratch, the cursor of this node)."""
     k, s_prev, u_prev = cursor
@@ -159,6 +206,7 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     s = _depth_to_s(el_S[k], w, u - el_u0[k], s_prev, u_prev - el_u0[k])
     for c in range(3):
         j_val[c, col] = 0.0
+    j_val[3, col] = -1.0
     sigma_t = bernstein_eval(el_S[k], s)
     if sigma_t <= 0.0:
         return scratch, (k, s, u)
@@ -175,6 +223,7 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     # the last octave sees the least optical depth (a^i tau): the shadow ray counts until that one is dark
     scratch = light_at_node(pos, pos, d, False, quad.u_stop / octaves[octaves.shape[0] - 1, 0], j_tol, scene,
                             quad.tol_t, scratch, work)
+    j_val[3, col] = node_topology(light_buf)
     for m in range(med.albedo.shape[0]):
         if med.albedo[m] == 0.0:
             continue
@@ -199,25 +248,32 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
 def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
     """out[:3] += the in-scattering integral over the step [u0, u0 + h] of view optical depth: 7 Gauss
     nodes; where the tail of their Legendre expansion says J is rougher than the tolerance allows, the 8
-    Kronrod nodes join them (15, the 7 reused); where the two rules still disagree the step is halved
-    (at most MAX_SPLITS times), left half first, so that the nodes come in increasing u. Parts seen
-    through less than ``cutoff`` are dropped. state: a records.StepState. Returns the state after the
+    Kronrod nodes join them (15, the 7 reused); where the two rules still disagree the step is split (at
+    most MAX_SPLITS halvings deep), left part first, so that the nodes come in increasing u: around the
+    first fold of the light's optical depth that the nodes' shadow rays bracket (their entries into the
+    media differ between two neighbours), into the parts before, between and after those two nodes, so that
+    the kink J has there is confined to the narrow middle part; else halved. Parts seen through less than
+    ``cutoff`` are dropped. state: a records.StepState. Returns the state after the
     step."""
     k, s_prev, u_prev, j_max, scratch = state.k, state.s_prev, state.u_prev, state.j_max, state.scratch
     nodes = work.nodes
-    node_w, j_val, split_u, split_depth = nodes.node_w, nodes.j_val, nodes.split_u, nodes.split_depth
+    node_w, j_val, count = nodes.node_w, nodes.j_val, nodes.count
+    split_u, split_h, split_depth = nodes.split_u, nodes.split_h, nodes.split_depth
     gauss_col, kronrod_col, kronrod_x, tail = quad.gauss_col, quad.kronrod_col, quad.kronrod_x, quad.tail
     n_g = quad.gauss_x.shape[0]
+    n_k = kronrod_x.shape[0]
     split_u[0] = u0
+    split_h[0] = h
     split_depth[0] = 0.0
     top = 0
     while top >= 0:
         u_step = split_u[top]
-        depth = int(split_depth[top])
+        hh = split_h[top]
+        depth = split_depth[top]
         top -= 1
         if u_step >= quad.u_stop:
             break  # the rest is seen through less than `cutoff`
-        hh = h * 0.5 ** depth
+        count[COUNT_STEPS] += 1.0
         k_0, s_0, up_0 = k, s_prev, u_prev
         e0 = math.exp(-u_step)
         c_lo = 0.0
@@ -238,6 +294,7 @@ def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
                     break
                 i_gauss = _rule_sum(node_w, j_val, gauss_col, n_g)
                 k, s_prev, u_prev = k_0, s_0, up_0  # the Kronrod nodes, again in increasing u
+                count[COUNT_KRONROD] += 1.0
             col = gauss_col[g] if g < n_g else kronrod_col[g - n_g]
             scratch, (k, s_prev, u_prev) = source_at(u_step + kronrod_x[col] * hh, k_b, (k, s_prev, u_prev), o, d,
                                                      scene, quad, scratch, work, col)
@@ -252,17 +309,28 @@ def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
         # (the last Kronrod node is the part's last node: the search goes on from there)
         _exp_weights(hh, quad.kronrod_lag, quad.fine_y, quad.fine_w, node_w)
         i_kronrod = 0.0
-        for g in range(kronrod_x.shape[0]):
+        for g in range(n_k):
             i_kronrod += node_w[g] * (j_val[0, g] + j_val[1, g] + j_val[2, g])
-        if abs(i_kronrod - i_gauss) * e0 > allowed * hh and depth < MAX_SPLITS:
+        # (depth: log2 of the step's width over the part's; the pending parts must fit the work row)
+        if abs(i_kronrod - i_gauss) * e0 > allowed * hh and depth < MAX_SPLITS and top + 3 < split_u.shape[0]:
             k, s_prev, u_prev = k_0, s_0, up_0
-            split_u[top + 1] = u_step + 0.5 * hh
-            split_depth[top + 1] = depth + 1.0
-            split_u[top + 2] = u_step
-            split_depth[top + 2] = depth + 1.0
-            top += 2
+            count[COUNT_SPLITS] += 1.0
+            i_fold = fold_bracket(j_val[3], n_k)
+            if i_fold >= 0:
+                # a fold lies between nodes i_fold and i_fold + 1: J's kink there would keep every half rough
+                count[COUNT_FOLDS] += 1.0
+                top = push_fold_parts(split_u, split_h, split_depth, top, u_step, hh, depth, kronrod_x[i_fold],
+                                      kronrod_x[i_fold + 1])
+            else:
+                split_u[top + 1] = u_step + 0.5 * hh
+                split_h[top + 1] = 0.5 * hh
+                split_u[top + 2] = u_step
+                split_h[top + 2] = 0.5 * hh
+                split_depth[top + 1] = depth + 1.0
+                split_depth[top + 2] = depth + 1.0
+                top += 2
             continue
-        for g in range(kronrod_x.shape[0]):
+        for g in range(n_k):
             for c in range(3):
                 out[c] += e0 * node_w[g] * j_val[c, g]
     return StepState(k, s_prev, u_prev, j_max, scratch)
@@ -490,7 +558,7 @@ def single_scattering(o, d, scene, quad, work, out):
 def render_pixels(camera, scene, quad, row0, p0, p1, image, depth, counts):
     """Pixels p0 .. p1 - 1, counted row by row from the start of row row0, into image (H x W x 4, row 0
     at the top), depth (H x W: per pixel, the nearest surface hit t over its samples, inf where none
-    hits) and counts (H x W x 4: per pixel what its light cost, kernels.lighting.COUNT_*), with their own
+    hits) and counts (H x W x N_COUNTS: per pixel what its light cost, kernels.lighting.COUNT_*), with their own
     work arrays. nogil: cloudmeta.renderer.single runs bands of rows on several threads.
 
     camera: a records.Camera (right and up scaled to the half-extent of the image plane at distance 1);
@@ -531,7 +599,7 @@ def render_pixels(camera, scene, quad, row0, p0, p1, image, depth, counts):
         own, work = hold_grown(own, work)
         depth[i, j] = nearest
         tally = work.nodes.count
-        for q in range(4):
+        for q in range(tally.shape[0]):
             counts[i, j, q] = tally[q]
             tally[q] = 0.0
         image[i, j, 0] = acc0 / spp

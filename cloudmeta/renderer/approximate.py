@@ -25,6 +25,7 @@ import numba
 import numpy as np
 
 from ..errors import SceneError
+from ..kernels.lighting import N_COUNTS
 from ..kernels.multiple import render_paths
 from ..kernels.single import render_pixels
 from .pack import background_along, pixel_directions, single_octave
@@ -97,7 +98,7 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     h, w = scene.image.height, scene.image.width
     exact = np.zeros((h, w, 4))
     nearest = np.full((h, w), np.inf)
-    counts = np.zeros((h, w, 4))
+    counts = np.zeros((h, w, N_COUNTS))
     mean = np.zeros((h, w, 3))
     stderr = np.zeros((h, w, 3))
 

@@ -12,6 +12,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError
+from ..kernels.lighting import N_COUNTS
 from ..scene.schema import Scene
 from ..scene.vocabulary import SCATTERING_MODES
 from .bands import tile_window
@@ -64,8 +65,9 @@ class RenderResult:
     #: for, the image's estimated relative RMSE (the estimate's RMSE over the pilot's mean scattered radiance)
     scattered: object | None = None
     estimated: float | None = None
-    #: per pixel what the single-scattering render's light cost (H x W x 4 float64: quadrature nodes, exact
-    #: shadow rays, shadow-map lookups, lookups trusted; renderer.single.render_single); see ``cost``
+    #: per pixel what the single-scattering render's light cost (H x W x N_COUNTS float64: quadrature nodes, exact
+    #: shadow rays, shadow-map lookups, lookups trusted, steps, steps with Kronrod nodes, splits, splits at
+    #: folds; renderer.single.render_single); see ``cost``
     counts: np.ndarray | None = None
     #: with denoise=True, the image before its Monte Carlo part was denoised (renderer.denoise); ``error`` and
     #: ``estimated`` are of this raw image
@@ -76,9 +78,10 @@ class RenderResult:
         and trusted lookups, as a dict (the benchmarks' counters; zeros where no pixel has media)."""
         media = self.image[..., 3] > 0.0
         n = max(int(np.count_nonzero(media)), 1)
-        total = self.counts[media].sum(axis=0) if self.counts is not None else np.zeros(4)
+        total = self.counts[media].sum(axis=0) if self.counts is not None else np.zeros(N_COUNTS)
         return dict(media_pixels=int(np.count_nonzero(media)), nodes=total[0] / n, exact_rays=total[1] / n,
-                    lookups=total[2] / n, trusted=total[3] / n)
+                    lookups=total[2] / n, trusted=total[3] / n, steps=total[4] / n, kronrod=total[5] / n,
+                    splits=total[6] / n, folds=total[7] / n)
 
 
 def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, error=False,

@@ -5,19 +5,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.lighting import N_COUNTS
 from ..kernels.single import render_pixels
 from .bands import run_bands
 
 
 def render_single(scene, packed, window, progress):
     """(image, nearest, counts) of the tile ``window``: the H x W x 4 float64 radiance and alpha, per pixel the
-    distance to the nearest surface hit (inf where none), and per pixel what its light cost (H x W x 4:
-    quadrature nodes, exact shadow rays, shadow-map lookups, lookups trusted; kernels.lighting.COUNT_*).
+    distance to the nearest surface hit (inf where none), and per pixel what its light cost (H x W x N_COUNTS:
+    quadrature nodes, exact shadow rays, shadow-map lookups, lookups trusted, steps, steps with Kronrod nodes,
+    splits, splits at folds; kernels.lighting.COUNT_*).
     ``packed``: a pack.Packed of the scene."""
     w, h = scene.image.width, scene.image.height
     image = np.zeros((h, w, 4), np.float64)
     nearest = np.full((h, w), np.inf)
-    counts = np.zeros((h, w, 4), np.float64)
+    counts = np.zeros((h, w, N_COUNTS), np.float64)
     camera, records, quad = packed.camera, packed.records, packed.quadrature
     run_bands(lambda row0, p0, p1: render_pixels(camera, records, quad, row0, p0, p1, image, nearest, counts),
               window, w, progress)

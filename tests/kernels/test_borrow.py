@@ -4,6 +4,7 @@ from numba import njit
 
 import cloudmeta as cm
 from cloudmeta.kernels.borrow import borrow, hold_grown, release
+from cloudmeta.kernels.lighting import N_COUNTS
 from cloudmeta.kernels.media import alloc_ray_pieces, grow_ray_pieces
 from cloudmeta.kernels.raywork import alloc_node_work
 from cloudmeta.kernels.records import RayWork
@@ -46,7 +47,7 @@ def test_grown_work_arrays_give_the_same_pixels(tmp_path):
     scene = cm.load_scene(path)
     p = pack_scene(scene, 0)
     n = 64
-    out = [(np.zeros((8, 8, 4)), np.full((8, 8), np.inf), np.zeros((8, 8, 4))) for _ in range(2)]
+    out = [(np.zeros((8, 8, 4)), np.full((8, 8), np.inf), np.zeros((8, 8, N_COUNTS))) for _ in range(2)]
     render_pixels(p.camera, p.records, p.quadrature, np.int64(0), np.int64(0), np.int64(n), *out[0])
     for k in range(n):
         render_pixels(p.camera, p.records, p.quadrature, np.int64(0), np.int64(k), np.int64(k + 1), *out[1])

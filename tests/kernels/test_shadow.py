@@ -30,7 +30,7 @@ def full_sweep_depth(o, d, tmin, tmax, rec, mode, tol_t):
 
 def fused_depth(o, d, tmin, tmax, rec, mode, tol_t, capacity=4096):
     cand = np.arange(rec.centers.shape[0])
-    _, rho = ksh.column_density(o, d, tmin, tmax, rec, mode, tol_t, cand, len(cand), ks.alloc_scratch(capacity))
+    _, rho, _ = ksh.column_density(o, d, tmin, tmax, rec, mode, tol_t, cand, len(cand), ks.alloc_scratch(capacity))
     return 1.7 * rho
 
 
@@ -109,3 +109,34 @@ def test_scratch_grows(rng):
     for i in range(len(o)):
         assert fused_depth(o[i], d[i], 0.0, np.inf, rec, DENSITY_FIELD, 1e-12, capacity=1) == \
             fused_depth(o[i], d[i], 0.0, np.inf, rec, DENSITY_FIELD, 1e-12)
+
+
+def full_sweep_entries(o, d, tmin, tmax, rec, tol_t):
+    """The ray's entries into {F >= T} from the full sweep's inside pieces: a piece that does not start where the
+    one before it ended (the pieces are cut at the composite intervals' ends)."""
+    cand = np.arange(rec.centers.shape[0])
+    scratch = ks.alloc_scratch(4096)
+    n_p = ks.gather_chords(o, d, tmin, tmax, rec, cand, len(cand), scratch)
+    if n_p == 0:
+        return 0
+    n_iv = ks.composite(n_p, tmin, tmax, scratch)
+    n_out, _ = ks.inside_pieces(n_iv, rec.threshold, tmin, tmax, tol_t, False, scratch)
+    return sum(1 for k in range(n_out) if k == 0 or scratch.out_t0[k] > scratch.out_t1[k - 1])
+
+
+@pytest.mark.parametrize("kernel", ["wyvill6", "blinn"])
+def test_entries_count_the_inside_parts(rng, kernel):
+    """column_density's count of entries (what the quadrature's fold splits compare between nodes) is the number
+    of separate inside parts the full sweep finds, on rays from outside and inside, cut or not."""
+    blob = random_blob(rng, 14, kernel, ellipsoids=True, negative=True)
+    rec = blob_record(blob)
+    o, d = rays_inside_and_out(rng, blob, 40)
+    seen = set()
+    for i in range(len(o)):
+        for tmin, tmax in ((0.0, np.inf), (1.5, np.inf), (0.3, 2.0)):
+            cand = np.arange(rec.centers.shape[0])
+            _, _, entries = ksh.column_density(o[i], d[i], tmin, tmax, rec, DENSITY_FIELD, 1e-12, cand, len(cand),
+                                               ks.alloc_scratch(64))
+            assert entries == full_sweep_entries(o[i], d[i], tmin, tmax, rec, 1e-12), (i, tmin, tmax)
+            seen.add(entries)
+    assert {0, 1, 2} <= seen  # rays that miss, enter once and enter more than once

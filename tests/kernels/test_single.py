@@ -141,3 +141,50 @@ def test_steps_grow_with_the_view_depth(tmp_path):
     np.testing.assert_allclose(equal, converged, rtol=1e-3)
     np.testing.assert_allclose(grown, converged, rtol=1e-3)
     assert n_grown < 0.7 * n_equal
+
+
+def test_steps_split_around_the_folds_of_the_light(tmp_path):
+    """A ball between the light and a ray's segment: the shadow rays from the nodes enter it, or not, and the
+    light's optical depth along the ray has a fold at each edge of its shadow. Steps whose rules disagree are cut
+    around the first fold their nodes bracket (their shadow rays' entries differ), and the radiance agrees with
+    a converged quadrature within the tolerance."""
+    path = tmp_path / "s.yaml"
+    path.write_text(textwrap.dedent("""
+        image: {width: 1, height: 1}
+        camera: {position: [0, -6, 0], look_at: [0, 0, 0], up: [0, 0, 1], fov: 1}
+        lights: [{type: directional, direction: [1, 0, 0], irradiance: 2}]
+        media:
+          - {kernel: wyvill6, threshold: 0.5, density: {mode: uniform, scale: 3.0}, albedo: 0.9,
+             balls: [{center: [0, 0, 0], radius: 2.0}, {center: [3.2, 0.3, 0], radius: 1.0}]}
+        """))
+    scene = load_scene(path)
+    o, d = np.array([0.0, -6.0, 0.0]), np.array([0.0, 1.0, 0.0])
+
+    def radiance(quality):
+        quad = pack.quadrature(quality)
+        records = pack.scene_records(scene, quad, 16)
+        work = kr.alloc_ray_work(records)
+        out = np.empty(5)
+        kr.single_scattering(o, d, records, quad, work, out)
+        return out[:3].copy(), work.nodes.count.copy()
+
+    converged, _ = radiance(Quality(tolerance=1e-10, max_tau=0.005, max_length=10.0, max_angle=0.1, cutoff=0.0,
+                                    tol_t=1e-9))
+    got, count = radiance(Quality(tolerance=1e-4, max_tau=4.0, max_length=10.0, max_angle=0.1, cutoff=1e-6,
+                                  tol_t=1e-9))
+    assert count[kr.COUNT_FOLDS] >= 1 and count[kr.COUNT_SPLITS] >= count[kr.COUNT_FOLDS]
+    np.testing.assert_allclose(got, converged, rtol=1e-3)
+
+
+def test_fold_bracket_and_the_parts_around_it():
+    """fold_bracket: the first neighbours whose known entries differ; push_fold_parts: the three parts tile the
+    part, the first in u on top, and each is as many halvings deep as its share of the width says."""
+    assert kr.fold_bracket(np.array([1.0, 1.0, 2.0, 2.0, 1.0]), np.int64(5)) == 1
+    assert kr.fold_bracket(np.array([1.0, -1.0, 2.0, 3.0]), np.int64(4)) == 2  # -1: unknown
+    assert kr.fold_bracket(np.array([1.0, 1.0, 1.0]), np.int64(3)) == -1
+    u, h, depth = np.zeros(8), np.zeros(8), np.zeros(8)
+    top = kr.push_fold_parts(u, h, depth, np.int64(0), 2.0, 0.5, 1.0, 0.25, 0.375)
+    assert top == 3
+    np.testing.assert_allclose(u[1:4], [2.0 + 0.1875, 2.125, 2.0])
+    np.testing.assert_allclose(h[1:4], [0.3125, 0.0625, 0.125])
+    np.testing.assert_allclose(depth[1:4], [1.0 - math.log2(0.625), 4.0, 3.0])

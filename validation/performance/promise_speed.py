@@ -149,7 +149,9 @@ def main(argv=None, quick=False):
             if costs[r] is not None:
                 c = costs[r]
                 print(f"{'':16s} {r.name}: per media pixel {c['nodes']:.1f} nodes, {c['exact_rays']:.1f} exact shadow "
-                      f"rays, {c['lookups']:.1f} map lookups ({c['trusted']:.1f} kept)", flush=True)
+                      f"rays, {c['lookups']:.1f} map lookups ({c['trusted']:.1f} kept)"
+                      + (f", {c['steps']:.2f} steps ({c['kronrod']:.2f} with Kronrod nodes), {c['splits']:.2f} splits "
+                         f"({c['folds']:.2f} at folds)" if "steps" in c else ""), flush=True)
         out[case] = dict(times={str(r): times[r] for r in roots})
     return out
 
