@@ -39,11 +39,9 @@ def _antiderivative(g, s, threshold):
 def straddling_interval(w, threshold, tol_t, mag, scratch):
     """The inside parts of an interval of length w whose hull straddles T (scratch.g: F - T on it; mag
     the magnitude of its control values): classes and roots as inside_pieces takes them. Returns (int of F
-    over the inside parts, their length, the entries into the inside at its roots, the class at its start,
-    the class at its end)."""
+    over the inside parts, their length, the entries into the inside at its roots, the class at its end)."""
     g = scratch.g
     inside = g[0] >= 0.0  # the class at its start (a jump at a chord end counts)
-    start_inside = inside
     entries = 0
     n_r = clip_roots(g, tol_t / w, NOISE * (threshold + mag), scratch.st_lo, scratch.st_hi, scratch.st_c,
                      scratch.loc, scratch.rising)
@@ -65,7 +63,7 @@ def straddling_interval(w, threshold, tol_t, mag, scratch):
     if inside:
         f_int += _antiderivative(g, 1.0, threshold) - _antiderivative(g, s_in, threshold)
         span += 1.0 - s_in
-    return w * f_int, w * span, entries, start_inside, end_inside
+    return w * f_int, w * span, entries, end_inside
 
 
 @njit(**NJIT)
@@ -101,12 +99,12 @@ def intervals_depth(n_iv, threshold, mode, tol_t, scratch):
         elif hi - threshold >= 0.0:
             for q in range(NCOEF):
                 g[q] = iv_c[k, q] - threshold
-            f_part, span, n_in, start_inside, end_inside = straddling_interval(w, threshold, tol_t,
-                                                                              iv_mag[k] * NCOEF, scratch)
+            if g[0] >= 0.0 and not inside:
+                entries += 1  # it starts inside (its class there, as straddling_interval takes it)
+            f_part, span, n_in, inside = straddling_interval(w, threshold, tol_t, iv_mag[k] * NCOEF, scratch)
             f_int += f_part
             length += span
-            entries += n_in + (1 if start_inside and not inside else 0)
-            inside = end_inside
+            entries += n_in
         else:  # the hull lies below T: wholly outside
             inside = False
     return rho_integral(f_int, length, mode, threshold), entries

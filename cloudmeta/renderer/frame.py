@@ -12,7 +12,8 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.lighting import N_COUNTS
+from ..kernels.lighting import (COUNT_EXACT, COUNT_FOLDS, COUNT_KRONROD, COUNT_LOOKUPS, COUNT_NODES, COUNT_SPLITS,
+                                COUNT_STEPS, COUNT_TRUSTED, N_COUNTS)
 from ..scene.schema import Scene
 from ..scene.vocabulary import SCATTERING_MODES
 from .bands import tile_window
@@ -79,9 +80,13 @@ class RenderResult:
         media = self.image[..., 3] > 0.0
         n = max(int(np.count_nonzero(media)), 1)
         total = self.counts[media].sum(axis=0) if self.counts is not None else np.zeros(N_COUNTS)
-        return dict(media_pixels=int(np.count_nonzero(media)), nodes=total[0] / n, exact_rays=total[1] / n,
-                    lookups=total[2] / n, trusted=total[3] / n, steps=total[4] / n, kronrod=total[5] / n,
-                    splits=total[6] / n, folds=total[7] / n)
+        return dict(media_pixels=int(np.count_nonzero(media)),
+                    **{name: total[q] / n for name, q in COUNTERS.items()})
+
+
+#: RenderResult.cost's names of the kernels' counters
+COUNTERS = dict(nodes=COUNT_NODES, exact_rays=COUNT_EXACT, lookups=COUNT_LOOKUPS, trusted=COUNT_TRUSTED,
+                steps=COUNT_STEPS, kronrod=COUNT_KRONROD, splits=COUNT_SPLITS, folds=COUNT_FOLDS)
 
 
 def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, error=False,

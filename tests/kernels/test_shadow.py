@@ -17,14 +17,22 @@ from tests.conftest import random_blob, random_rays
 MODES = DENSITY_MODES
 
 
-def full_sweep_depth(o, d, tmin, tmax, rec, mode, tol_t):
+def full_sweep_pieces(o, d, tmin, tmax, rec, tol_t):
+    """(number of inside pieces, the scratch holding them) of the full sweep: chords, composite, inside_pieces."""
     cand = np.arange(rec.centers.shape[0])
     scratch = ks.alloc_scratch(4096)
     n_p = ks.gather_chords(o, d, tmin, tmax, rec, cand, len(cand), scratch)
     if n_p == 0:
-        return 0.0
+        return 0, scratch
     n_iv = ks.composite(n_p, tmin, tmax, scratch)
     n_out, _ = ks.inside_pieces(n_iv, rec.threshold, tmin, tmax, tol_t, False, scratch)
+    return n_out, scratch
+
+
+def full_sweep_depth(o, d, tmin, tmax, rec, mode, tol_t):
+    n_out, scratch = full_sweep_pieces(o, d, tmin, tmax, rec, tol_t)
+    if n_out == 0:
+        return 0.0
     return ks.pieces_optical_depth(n_out, mode, rec.threshold, 1.7, scratch)
 
 
@@ -114,13 +122,7 @@ def test_scratch_grows(rng):
 def full_sweep_entries(o, d, tmin, tmax, rec, tol_t):
     """The ray's entries into {F >= T} from the full sweep's inside pieces: a piece that does not start where the
     one before it ended (the pieces are cut at the composite intervals' ends)."""
-    cand = np.arange(rec.centers.shape[0])
-    scratch = ks.alloc_scratch(4096)
-    n_p = ks.gather_chords(o, d, tmin, tmax, rec, cand, len(cand), scratch)
-    if n_p == 0:
-        return 0
-    n_iv = ks.composite(n_p, tmin, tmax, scratch)
-    n_out, _ = ks.inside_pieces(n_iv, rec.threshold, tmin, tmax, tol_t, False, scratch)
+    n_out, scratch = full_sweep_pieces(o, d, tmin, tmax, rec, tol_t)
     return sum(1 for k in range(n_out) if k == 0 or scratch.out_t0[k] > scratch.out_t1[k - 1])
 
 

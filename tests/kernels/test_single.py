@@ -107,6 +107,16 @@ def test_single_scattering_of_an_absorbing_ball(tmp_path):
     assert out[4] == np.inf
 
 
+def axis_ray_radiance(scene, quality):
+    """(radiance, counters) of the single-scattering estimator on the ray from (0, -6, 0) along +y at ``quality``."""
+    quad = pack.quadrature(quality)
+    records = pack.scene_records(scene, quad, 16)
+    work = kr.alloc_ray_work(records)
+    out = np.empty(5)
+    kr.single_scattering(np.array([0.0, -6.0, 0.0]), np.array([0.0, 1.0, 0.0]), records, quad, work, out)
+    return out[:3].copy(), work.nodes.count.copy()
+
+
 def test_steps_grow_with_the_view_depth(tmp_path):
     """Quality.growth g: the step limits at view depth u are max_tau and max_length times e^(g u), since a
     step's error reaches the image through e^-u. On a thick uniform ball lit from the side (J follows the
@@ -122,21 +132,12 @@ def test_steps_grow_with_the_view_depth(tmp_path):
              balls: [{center: [0, 0, 0.3], radius: 2.0}]}
         """))
     scene = load_scene(path)
-    o, d = np.array([0.0, -6.0, 0.0]), np.array([0.0, 1.0, 0.0])
-
-    def radiance(quality):
-        quad = pack.quadrature(quality)
-        records = pack.scene_records(scene, quad, 16)
-        work = kr.alloc_ray_work(records)
-        out = np.empty(5)
-        kr.single_scattering(o, d, records, quad, work, out)
-        return out[:3].copy(), work.nodes.count[0]
-
-    converged, _ = radiance(Quality(tolerance=1e-9, max_tau=0.02, max_length=10.0, max_angle=0.1, cutoff=0.0,
-                                    tol_t=1e-9))
+    converged, _ = axis_ray_radiance(scene, Quality(tolerance=1e-9, max_tau=0.02, max_length=10.0, max_angle=0.1,
+                                                    cutoff=0.0, tol_t=1e-9))
     coarse = dict(tolerance=1e-3, max_tau=0.5, max_length=10.0, max_angle=0.1, cutoff=1e-4, tol_t=1e-9)
-    equal, n_equal = radiance(Quality(**coarse))
-    grown, n_grown = radiance(Quality(**coarse, growth=1.0))
+    equal, count = axis_ray_radiance(scene, Quality(**coarse))
+    grown, count_grown = axis_ray_radiance(scene, Quality(**coarse, growth=1.0))
+    n_equal, n_grown = count[kr.COUNT_NODES], count_grown[kr.COUNT_NODES]
     assert converged[0] > 0.0
     np.testing.assert_allclose(equal, converged, rtol=1e-3)
     np.testing.assert_allclose(grown, converged, rtol=1e-3)
@@ -158,20 +159,10 @@ def test_steps_split_around_the_folds_of_the_light(tmp_path):
              balls: [{center: [0, 0, 0], radius: 2.0}, {center: [3.2, 0.3, 0], radius: 1.0}]}
         """))
     scene = load_scene(path)
-    o, d = np.array([0.0, -6.0, 0.0]), np.array([0.0, 1.0, 0.0])
-
-    def radiance(quality):
-        quad = pack.quadrature(quality)
-        records = pack.scene_records(scene, quad, 16)
-        work = kr.alloc_ray_work(records)
-        out = np.empty(5)
-        kr.single_scattering(o, d, records, quad, work, out)
-        return out[:3].copy(), work.nodes.count.copy()
-
-    converged, _ = radiance(Quality(tolerance=1e-10, max_tau=0.005, max_length=10.0, max_angle=0.1, cutoff=0.0,
-                                    tol_t=1e-9))
-    got, count = radiance(Quality(tolerance=1e-4, max_tau=4.0, max_length=10.0, max_angle=0.1, cutoff=1e-6,
-                                  tol_t=1e-9))
+    converged, _ = axis_ray_radiance(scene, Quality(tolerance=1e-10, max_tau=0.005, max_length=10.0, max_angle=0.1,
+                                                    cutoff=0.0, tol_t=1e-9))
+    got, count = axis_ray_radiance(scene, Quality(tolerance=1e-4, max_tau=4.0, max_length=10.0, max_angle=0.1,
+                                                  cutoff=1e-6, tol_t=1e-9))
     assert count[kr.COUNT_FOLDS] >= 1 and count[kr.COUNT_SPLITS] >= count[kr.COUNT_FOLDS]
     np.testing.assert_allclose(got, converged, rtol=1e-3)
 
