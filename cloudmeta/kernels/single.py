@@ -30,8 +30,8 @@ polynomial). The in-scattering integral is taken in optical depth u, where T sig
 (sigma_s/sigma_t) du: product-integration weights (exact for e^-u times a polynomial, see _exp_weights)
 on steps no thicker than ``max_tau`` and no longer than ``max_length`` (both times e^(growth u) at view depth u:
 a step seen through e^-u may be that much rougher); each step takes 7 Gauss nodes,
-the 8 Kronrod nodes of G7-K15 where J's Legendre tail exceeds ``tolerance``, and is halved where the two
-rules disagree (docs/model_notes.md); an exact shadow ray goes from every node to every light; near
+the 8 Kronrod nodes of G7-K15 where J's Legendre tail (a tenth of it, TAIL_SHARE, where no fold lies among the
+Gauss nodes) exceeds ``tolerance``, and is split where the two rules disagree (docs/model_notes.md); an exact shadow ray goes from every node to every light; near
 point lights the segment is first cut at equal angles (at most ``max_angle``) seen from the light, which
 tames their 1/r^2.
 
@@ -80,6 +80,12 @@ from .surfaces import SHADOW_OFFSET, surface_normal
 #: a step is split at most this deep where its Kronrod and Gauss results disagree (the pending parts, at most
 #: 2 per level, fit the MAX_NODES slots of a work row)
 MAX_SPLITS = 6
+#: the share of J's Legendre tail that the Gauss-only test counts as the step's error where no fold lies among the
+#: Gauss nodes (their shadow rays all enter the media alike). The two highest Legendre coefficients of J's degree-6
+#: interpolant say how far J is from a lower degree, but the 7 Gauss nodes integrate exactly to degree 13: on a smooth
+#: J they err far less than the tail. Across a fold J has a square-root kink, and there the whole tail counts
+#: (docs/error_estimate.md "The Gauss test's share of the tail")
+TAIL_SHARE = 0.1
 
 
 @njit(**NJIT)
@@ -169,6 +175,18 @@ def fold_bracket(topo_row, n):
 
 
 @njit(**NJIT_INLINE)
+def tail_share(topo_row, cols, n):
+    """TAIL_SHARE where no two neighbouring nodes among cols[:n] (in increasing u) both know their shadow rays'
+    entries (node_topology) and differ in them; else 1: a fold lies among them."""
+    for q in range(n - 1):
+        a = topo_row[cols[q]]
+        b = topo_row[cols[q + 1]]
+        if a >= 0.0 and b >= 0.0 and a != b:
+            return 1.0
+    return TAIL_SHARE
+
+
+@njit(**NJIT_INLINE)
 def push_fold_parts(split_u, split_h, split_depth, top, u_step, hh, depth, x_lo, x_hi):
     """Push the parts [x_hi, 1], [x_lo, x_hi] and [0, x_lo] of the part [u_step, u_step + hh] (in units of hh) on
     the work row's pending parts, the first to be done last; depth grows by log2 of each part's share (a
@@ -247,8 +265,8 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
 @njit(**NJIT_INLINE)
 def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
     """out[:3] += the in-scattering integral over the step [u0, u0 + h] of view optical depth: 7 Gauss
-    nodes; where the tail of their Legendre expansion says J is rougher than the tolerance allows, the 8
-    Kronrod nodes join them (15, the 7 reused); where the two rules still disagree the step is split (at
+    nodes; where the tail of their Legendre expansion says J is rougher than the tolerance allows (``tail_share``:
+    a tenth of the tail counts where their shadow rays show no fold), the 8 Kronrod nodes join them (15, the 7 reused); where the two rules still disagree the step is split (at
     most MAX_SPLITS halvings deep), left part first, so that the nodes come in increasing u: around the
     first fold of the light's optical depth that the nodes' shadow rays bracket (their entries into the
     media differ between two neighbours), into the parts before, between and after those two nodes, so that
@@ -289,7 +307,7 @@ def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
                 # J's error, weighted by e^-u, is then below tolerance times the frame's scattered-light
                 # scale (the pilot's; else the ray's brightest J): deep steps may be rougher
                 allowed = quad.tolerance * (quad.light_scale if quad.light_scale > 0.0 else j_max)
-                if (abs(c_lo) + abs(c_hi)) * e0 <= allowed:
+                if (abs(c_lo) + abs(c_hi)) * tail_share(j_val[3], gauss_col, n_g) * e0 <= allowed:
                     gauss_done = True
                     break
                 i_gauss = _rule_sum(node_w, j_val, gauss_col, n_g)

@@ -179,3 +179,21 @@ def test_fold_bracket_and_the_parts_around_it():
     np.testing.assert_allclose(u[1:4], [2.0 + 0.1875, 2.125, 2.0])
     np.testing.assert_allclose(h[1:4], [0.3125, 0.0625, 0.125])
     np.testing.assert_allclose(depth[1:4], [1.0 - math.log2(0.625), 4.0, 3.0])
+
+
+def test_tail_share_counts_the_whole_tail_across_a_fold():
+    """tail_share: a tenth of the Legendre tail where the Gauss nodes' shadow rays all enter the media alike (or
+    are unknown), the whole tail where two neighbours among them differ; nodes between them (the Kronrod
+    columns) are not looked at."""
+    cols = np.array([1, 3, 5, 7, 9, 11, 13], dtype=np.int64)
+    n = np.int64(7)
+    topo = np.full(15, 2.0)
+    assert kr.tail_share(topo, cols, n) == kr.TAIL_SHARE
+    topo[0] = topo[14] = 3.0  # a change outside the Gauss columns
+    assert kr.tail_share(topo, cols, n) == kr.TAIL_SHARE
+    topo[9] = -1.0  # a map lookup: unknown, no fold seen
+    assert kr.tail_share(topo, cols, n) == kr.TAIL_SHARE
+    topo[11] = topo[13] = 3.0  # the change from 2 hides behind the unknown node: no known pair differs
+    assert kr.tail_share(topo, cols, n) == kr.TAIL_SHARE
+    topo[13] = 4.0  # nodes 11 and 13 differ: a fold between them
+    assert kr.tail_share(topo, cols, n) == 1.0
