@@ -81,7 +81,9 @@ def test_calibration_grid_keeps_4096_rays_or_the_whole_frame():
 @pytest.mark.parametrize("per_level, expected", [
     (lambda lv: 1.4e-4 * 3.0 ** lv, math.log(0.45e-3 / 4.2e-4) / math.log(3.0) + 1.0),  # between 1 and 2: aimed at 0.9 x half
     (lambda lv: 6e-4 * 3.0 ** lv, math.log(0.45e-3 / 6e-4) / math.log(3.0)),  # level 0 above half: finer
-    (lambda lv: 2e-3 * 3.0 ** lv, -1.0),    # level 0 far above the target: one step finer
+    (lambda lv: 1.4e-3 * 3.0 ** lv, -1.0),  # level 0 3x above the limit: the reference, whose own error passes
+    (lambda lv: 2e-3 * 3.0 ** lv, -2.0),    # level 0 4x above: the reference's own error too, one step finer still
+    (lambda lv: 1.3e-3 * 1.2 ** lv, -2.0),  # an error that grows slowly: the reference seen through at most 1.5x
     (lambda lv: 1e-5 * 3.0 ** lv, 3.0),     # every level passes: MAX_LEVEL
     (lambda lv: 0.0, 3.0),                  # no error at all (a closed form)
     (lambda lv: 3e-4 * 3.0 ** lv, math.log(0.45e-3 / 3e-4) / math.log(3.0)),  # between 0 and 1
