@@ -102,6 +102,21 @@ def test_calibrated_level_is_the_coarsest_within_half_the_target(per_level, expe
     assert max(calls) <= MAX_LEVEL
 
 
+def test_a_finer_level_that_fails_is_tried_again_with_the_growth_it_measured():
+    """Below level 0 the first try is aimed with the growth measured between levels 0 and 1; where the error falls
+    more slowly than that, the growth is refitted from level 0 and the try, and a second try is aimed with it."""
+    calls = []
+
+    def error_at(level):
+        calls.append(level)
+        return {1.0: 2e-3, 0.0: 8e-4}.get(level, 5.2e-4 if level > -0.7 else 3e-4)
+    level, measured = calibrated_level(error_at, 1e-3)
+    first = math.log(0.45e-3 / 8e-4) / math.log(2.5)
+    second = first + math.log(0.45e-3 / 5.2e-4) / math.log((8e-4 / 5.2e-4) ** (1.0 / -first))
+    assert calls == pytest.approx([1.0, 0.0, first, second])
+    assert (level, measured) == (pytest.approx(second), 3e-4)
+
+
 def test_an_interpolated_level_that_fails_falls_back_to_the_last_whole_step():
     steps = {1.0: 4e-4, 2.0: 2e-3}
     level, measured = calibrated_level(lambda lv: steps.get(lv, 9e-4), 1e-3)
