@@ -11,6 +11,8 @@ import cloudmeta as cm
 from cloudmeta.renderer import render_frame
 from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.errors import SceneError
+from cloudmeta.kernels.lighting import COUNT_KRONROD, COUNT_STEPS, N_COUNTS
+from cloudmeta.renderer import pilot
 from cloudmeta.renderer.pilot import (CALIBRATION_RAYS, MAX_LEVEL, MIN_SIDE, MIN_TRUSTED, SHARE, STRIDE,
                                       calibrated_level, calibration_size, light_scale, pilot_size)
 
@@ -115,6 +117,37 @@ def test_a_finer_level_that_fails_is_tried_again_with_the_growth_it_measured():
     second = first + math.log(0.45e-3 / 5.2e-4) / math.log((8e-4 / 5.2e-4) ** (1.0 / -first))
     assert calls == pytest.approx([1.0, 0.0, first, second])
     assert (level, measured) == (pytest.approx(second), 3e-4)
+
+
+def test_kronrod_share_counts_the_steps_that_took_the_kronrod_nodes():
+    counts = np.zeros((2, 3, N_COUNTS))
+    counts[0, 0, COUNT_STEPS], counts[0, 0, COUNT_KRONROD] = 4.0, 1.0
+    counts[1, 2, COUNT_STEPS], counts[1, 2, COUNT_KRONROD] = 4.0, 2.0
+    assert pilot.kronrod_share(counts) == pytest.approx(3.0 / 8.0)
+    assert pilot.kronrod_share(np.zeros((1, 1, N_COUNTS))) == 0.0
+
+
+def test_shorter_steps_are_taken_only_where_they_pass_with_fewer_nodes(monkeypatch):
+    """With the try forced on small frames (any Kronrod share, any grid): the bank at 64 x 48 takes the shorter steps
+    (they pass half the target with fewer nodes), the cumulus does not (they would cost more); the bank's measured
+    error passes, and its true error against a render at ``reference`` stays within the target."""
+    monkeypatch.setattr(pilot, "KRONROD_SHARE", -1.0)
+    monkeypatch.setattr(pilot, "SHORTER_GRID", 1)
+
+    def dark(name):
+        s = cm.load_scene(ROOT / "scenes" / f"{name}.yaml", width=64, height=48)
+        return replace(s, background=np.zeros(3), ambient=None)
+    assert not render_frame(dark("cumulus"), progress=False).scattered.shorter
+    s = dark("dense_1000")
+    result = render_frame(s, progress=False)
+    assert result.scattered.shorter
+    assert result.scattered.predicted <= SHARE * 1e-3
+    ref = np.asarray(render_frame(replace(s, render=replace(s.render, quality="reference")), progress=False).image,
+                     np.float64)[..., :3]
+    img = np.asarray(result.image, np.float64)[..., :3]
+    assert np.sqrt(np.mean((img - ref) ** 2)) / ref.mean() <= 1e-3
+    monkeypatch.setattr(pilot, "KRONROD_SHARE", 2.0)  # never tried
+    assert not render_frame(s, progress=False).scattered.shorter
 
 
 def test_an_interpolated_level_that_fails_falls_back_to_the_last_whole_step():
