@@ -31,9 +31,9 @@ polynomial). The in-scattering integral is taken in optical depth u, where T sig
 on steps no thicker than ``max_tau`` and no longer than ``max_length`` (both times e^(growth u) at view depth u:
 a step seen through e^-u may be that much rougher); each step takes 7 Gauss nodes,
 the 8 Kronrod nodes of G7-K15 where J's Legendre tail (a tenth of it, TAIL_SHARE, where no fold lies among the
-Gauss nodes) exceeds ``tolerance``, and is split where the two rules disagree (docs/model_notes.md); an exact shadow ray goes from every node to every light; near
-point lights the segment is first cut at equal angles (at most ``max_angle``) seen from the light, which
-tames their 1/r^2.
+Gauss nodes) exceeds ``tolerance``, and is split where the two rules disagree (docs/model_notes.md); an exact
+shadow ray goes from every node to every light; near point lights the segment is first cut at equal angles (at
+most ``max_angle``) seen from the light, which tames their 1/r^2.
 
 With opaque surfaces, the media are traced over [0, t_hit] only, and the hit, shaded as Lambertian,
 takes the background's place: L = L_surface T(0, t_hit) + in-scattering over [0, t_hit], alpha 1. Shadow
@@ -163,13 +163,20 @@ def node_topology(light_buf):
 
 
 @njit(**NJIT_INLINE)
+def fold_between(a, b):
+    """Whether a fold of the light's optical depth lies between two nodes whose node_topology are a and b: both
+    known (from exact shadow rays) and different."""
+    return a >= 0.0 and b >= 0.0 and a != b
+
+
+@njit(**NJIT_INLINE)
 def fold_bracket(topo_row, n):
     """The first i < n - 1 where nodes i and i + 1 (in increasing u) both know their shadow rays' entries
     (node_topology) and these differ: a fold of the light's optical depth lies between them. -1 where none
     does. (Only where exactly one pair differed, the splits measured the same: 40.7 against 40.4 nodes per
     media pixel on the bank.)"""
     for q in range(n - 1):
-        if topo_row[q] >= 0.0 and topo_row[q + 1] >= 0.0 and topo_row[q] != topo_row[q + 1]:
+        if fold_between(topo_row[q], topo_row[q + 1]):
             return q
     return -1
 
@@ -179,9 +186,7 @@ def tail_share(topo_row, cols, n):
     """TAIL_SHARE where no two neighbouring nodes among cols[:n] (in increasing u) both know their shadow rays'
     entries (node_topology) and differ in them; else 1: a fold lies among them."""
     for q in range(n - 1):
-        a = topo_row[cols[q]]
-        b = topo_row[cols[q + 1]]
-        if a >= 0.0 and b >= 0.0 and a != b:
+        if fold_between(topo_row[cols[q]], topo_row[cols[q + 1]]):
             return 1.0
     return TAIL_SHARE
 
@@ -266,13 +271,13 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
 def step_in_scattering(o, d, u0, h, k_b, state, scene, quad, work, out):
     """out[:3] += the in-scattering integral over the step [u0, u0 + h] of view optical depth: 7 Gauss
     nodes; where the tail of their Legendre expansion says J is rougher than the tolerance allows (``tail_share``:
-    a tenth of the tail counts where their shadow rays show no fold), the 8 Kronrod nodes join them (15, the 7 reused); where the two rules still disagree the step is split (at
-    most MAX_SPLITS halvings deep), left part first, so that the nodes come in increasing u: around the
-    first fold of the light's optical depth that the nodes' shadow rays bracket (their entries into the
-    media differ between two neighbours), into the parts before, between and after those two nodes, so that
-    the kink J has there is confined to the narrow middle part; else halved. Parts seen through less than
-    ``cutoff`` are dropped. state: a records.StepState. Returns the state after the
-    step."""
+    a tenth of the tail counts where their shadow rays show no fold), the 8 Kronrod nodes join them (15, the 7
+    reused); where the two rules still disagree the step is split (at most MAX_SPLITS halvings deep), left part
+    first, so that the nodes come in increasing u: around the first fold of the light's optical depth that the
+    nodes' shadow rays bracket (their entries into the media differ between two neighbours), into the parts
+    before, between and after those two nodes, so that the kink J has there is confined to the narrow middle
+    part; else halved. Parts seen through less than ``cutoff`` are dropped. state: a records.StepState. Returns
+    the state after the step."""
     k, s_prev, u_prev, j_max, scratch = state.k, state.s_prev, state.u_prev, state.j_max, state.scratch
     nodes = work.nodes
     node_w, j_val, count = nodes.node_w, nodes.j_val, nodes.count

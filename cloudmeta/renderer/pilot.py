@@ -46,7 +46,7 @@ from .estimate import scaled_quality
 from .pack import Packed, pack_camera, quadrature
 from .quality import resolve_quality
 from .single import render_single
-from ..kernels.lighting import COUNT_KRONROD, COUNT_STEPS
+from ..kernels.lighting import COUNT_KRONROD, COUNT_NODES, COUNT_STEPS
 
 #: the pilot samples every STRIDE-th pixel of the frame in each direction, or fewer so that its shorter side
 #: keeps MIN_SIDE pixels (all of them where the frame's is shorter still); its aspect is the frame's
@@ -197,7 +197,8 @@ def _finer(error_at, e_one, e_zero, limit):
     once the Gauss test counted a tenth of the tail, where this extrapolation put the reference at 2.4e-3 and it
     measured 2.65e-3. A single try aimed with a growth of 3 missed the shipped generated cumulus at 512 x 512 by 9 %,
     and the frame fell back to -1: 14.6 s against 12.3 s before.)"""
-    growth = max(e_one / e_zero, 1.5)
+    measured = max(e_one / e_zero, 1.5)
+    growth = measured
     level, e_level = 0.0, e_zero
     for _ in range(BETWEEN_TRIES):
         level = max(-1.0, level + math.log(0.9 * limit / e_level) / math.log(growth))
@@ -208,7 +209,7 @@ def _finer(error_at, e_one, e_zero, limit):
             return level, e
         growth = max((e_zero / e) ** (1.0 / -level), 1.5)
         e_level = e
-    return (-2.0 if e_zero / max(e_one / e_zero, 1.5) > limit else -1.0), None
+    return (-2.0 if e_zero / measured > limit else -1.0), None
 
 
 def _between(error_at, passed, e_passed, failed, e_failed, limit):
@@ -245,12 +246,18 @@ def calibrate(scene, packed, quality, scale):
     images = {}
     counts = {}
 
+    def render_grid(q, exact):
+        """(the grid's scattered light as float64, its per-pixel counts) at Quality q (with exact shadow rays)."""
+        image, grid_counts = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
+        return image[..., :3].astype(np.float64), grid_counts
+
     def pilot_at(level, exact=False):
         if (level, exact) not in images:
-            q = scaled_quality(ladder, start + level)
-            image, counts[level, exact] = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
-            images[level, exact] = image[..., :3].astype(np.float64)
+            images[level, exact], counts[level, exact] = render_grid(scaled_quality(ladder, start + level), exact)
         return images[level, exact]
+
+    def rel_rmse(image):
+        return float(np.sqrt(np.mean((image - reference) ** 2))) / mean
 
     # with hybrid shadows the reference traces exact shadow rays: a hybrid map's error, which need not shrink
     # with the tolerance (a puff between texel rays), then counts in full in every level's measure (``shadows:
@@ -271,24 +278,26 @@ def calibrate(scene, packed, quality, scale):
             if share < MIN_TRUSTED:
                 exact_from.append(share)
                 raise _ExactRays
-        return float(np.sqrt(np.mean((image - reference) ** 2))) / mean
+        return rel_rmse(image)
 
     try:
         level, predicted = calibrated_level(error_at, target)
     except _ExactRays:
         level, predicted = calibrated_level(error_at, target)
     chosen = scaled_quality(ladder, start + level)
-    exact = bool(exact_from) or (hybrid and level == -1.0)
+    exact = bool(exact_from)
     took_shorter = False
     small_grid = SHORTER_GRID * size[0] * size[1] <= scene.image.width * scene.image.height
-    if (predicted is not None and small_grid and (not hybrid or exact_from)
+    # (a measured level only: the fallbacks -1 and -2 have no grid of their own here)
+    if (predicted is not None and small_grid and (not hybrid or exact)
             and kronrod_share(counts[level, exact]) > KRONROD_SHARE):
         # most of the grid's steps took the Kronrod nodes: steps half as thick, at half a step's looser tolerance
         coarser = scaled_quality(ladder, start + level + SHORTER_LEVEL)
         shorter = replace(coarser, max_tau=coarser.max_tau * 0.5)
-        image, grid = pilot_render(scene, packed, replace(shorter, map_share=0.0) if exact else shorter, size)
-        e = float(np.sqrt(np.mean((image[..., :3].astype(np.float64) - reference) ** 2))) / mean
-        took_shorter = e <= SHARE * target and grid[..., 0].sum() < counts[level, exact][..., 0].sum()
+        image, grid_counts = render_grid(shorter, exact)
+        e = rel_rmse(image)
+        nodes = grid_counts[..., COUNT_NODES].sum()
+        took_shorter = e <= SHARE * target and nodes < counts[level, exact][..., COUNT_NODES].sum()
         if took_shorter:
             chosen, predicted = shorter, e
     trusted = None

@@ -81,7 +81,8 @@ def test_calibration_grid_keeps_4096_rays_or_the_whole_frame():
 
 
 @pytest.mark.parametrize("per_level, expected", [
-    (lambda lv: 1.4e-4 * 3.0 ** lv, math.log(0.45e-3 / 4.2e-4) / math.log(3.0) + 1.0),  # between 1 and 2: aimed at 0.9 x half
+    # between 1 and 2: aimed at 0.9 x half
+    (lambda lv: 1.4e-4 * 3.0 ** lv, math.log(0.45e-3 / 4.2e-4) / math.log(3.0) + 1.0),
     (lambda lv: 6e-4 * 3.0 ** lv, math.log(0.45e-3 / 6e-4) / math.log(3.0)),  # level 0 above half: finer
     (lambda lv: 1.4e-3 * 3.0 ** lv, -1.0),  # level 0 3x above the limit: the reference, whose own error passes
     (lambda lv: 2e-3 * 3.0 ** lv, -2.0),    # level 0 4x above: the reference's own error too, one step finer still
