@@ -86,7 +86,7 @@ QUADRATURE_KEYS = ("tolerance", "max_tau", "max_length", "max_angle", "cutoff")
 @dataclass(frozen=True)
 class LightScale:
     """What the pilot measured: ``mean``, the mean over its pixels and RGB of the scattered radiance (the
-    denominator of the presets' relative RMSE); ``scale``, the RMS over its pixels of r + g + b (the
+    denominator of the presets' relative RMSE; on a calibrated frame, that of the calibration's reference); ``scale``, the RMS over its pixels of r + g + b (the
     quadrature's absolute unit); ``width`` x ``height``, the pilot's grid."""
     mean: float
     scale: float
@@ -306,8 +306,10 @@ def calibrate(scene, packed, quality, scale):
         trusted = exact_from[0] if exact_from else trusted_share(counts[max(level, -1.0), level <= -1.0])
         if trusted < MIN_TRUSTED:  # the lookups would cost more than they spare: exact rays (only more exact)
             chosen = replace(chosen, map_share=0.0)
-    return chosen, replace(scale, level=start + level, predicted=predicted, rays=size[0] * size[1], trusted=trusted,
-                           shorter=took_shorter)
+    # the frame's mean scattered radiance becomes the reference's: more rays at finer settings than the pilot's, whose
+    # few rays can miss a small bright spot (a lamp inside a deck: 25x too dark at 64 x 48, and every estimate 25x high)
+    return chosen, replace(scale, mean=mean, level=start + level, predicted=predicted, rays=size[0] * size[1],
+                           trusted=trusted, shorter=took_shorter)
 
 
 def kronrod_share(counts):

@@ -50,11 +50,12 @@ def test_estimated_rel_rmse_is_the_presets_measure():
     assert estimated_rel_rmse(np.zeros((2, 2, 4)), err) == 0.0
 
 
-@pytest.mark.parametrize("name", ["deck_grazing", "cumulus_front", "wisps_front"])
+@pytest.mark.parametrize("name", ["deck_grazing", "cumulus_front", "wisps_front", "deck_point_inside"])
 def test_estimate_brackets_the_true_error_on_suite_scenes(name):
     """Against the committed converged references (validation/results/suite): the image-level estimate
     between half and 10x the true relative RMSE (issue #11), at the default preset, both relative to the
-    mean scattered radiance (issue #23)."""
+    mean scattered radiance (issue #23). deck_point_inside's lamp is a bright spot the pilot's 22 x 16 rays
+    missed: over the pilot's mean its estimate was 67x the truth; the calibration's reference measures the mean."""
     from cloudmeta.renderer import render_frame
     ref = np.load(RESULTS / f"{name}.npy")
     s = cm.load_scene(SUITE / f"{name}.yaml")
