@@ -17,23 +17,31 @@ COARSER = dict(tolerance=3.0, max_tau=2.0, max_length=2.0, max_angle=2.0, cutoff
 MAX_REFINEMENTS = 5
 
 
+#: the widest angle a step may subtend at a point light, in any coarser setting: beyond about pi / 2 a step's nodes
+#: no longer resolve the light's 1 / r^2 (the estimate's second render at 3.2 radians erred 75x the image's)
+MAX_ANGLE = 1.6
+
+
 def coarser_quality(q):
-    """The settings of the error estimate's second render: every quadrature setting coarser."""
+    """The settings of the error estimate's second render: every quadrature setting coarser (the cutoff at most
+    0.5, the widest angle at most MAX_ANGLE)."""
     return replace(q, tolerance=q.tolerance * COARSER["tolerance"], max_tau=q.max_tau * COARSER["max_tau"],
-                   max_length=q.max_length * COARSER["max_length"], max_angle=q.max_angle * COARSER["max_angle"],
+                   max_length=q.max_length * COARSER["max_length"],
+                   max_angle=min(q.max_angle * COARSER["max_angle"], MAX_ANGLE),
                    cutoff=min(q.cutoff * COARSER["cutoff"], 0.5))
 
 
 def scaled_quality(q, level):
     """Every quadrature setting coarser by COARSER's factors raised to ``level`` (a real number; negative is
     finer; 0 returns q itself): the calibration's scale of settings (renderer.pilot), continuous between the
-    estimate's steps. The cutoff stays at most 0.5 and the widest angle at most 1.6 radians, as
-    coarser_quality and the scene's own limits keep them."""
+    estimate's steps. The cutoff stays at most 0.5, and the widest angle at most MAX_ANGLE / 2: the error estimate's
+    second render (coarser_quality) doubles it, and every setting must be coarser there for its difference to
+    see the error (cumulus_point_inside at `draft`, its angle at MAX_ANGLE: the estimate 0.6x the true error)."""
     if level == 0.0:
         return q
     f = {key: factor ** level for key, factor in COARSER.items()}
     return replace(q, tolerance=q.tolerance * f["tolerance"], max_tau=q.max_tau * f["max_tau"],
-                   max_length=q.max_length * f["max_length"], max_angle=min(q.max_angle * f["max_angle"], 1.6),
+                   max_length=q.max_length * f["max_length"], max_angle=min(q.max_angle * f["max_angle"], MAX_ANGLE / COARSER["max_angle"]),
                    cutoff=min(q.cutoff * f["cutoff"], 0.5))
 
 

@@ -1,5 +1,6 @@
 """render(..., error=True): the per-pixel error estimate, its EXR channels and the CLI's summary."""
 import os
+from dataclasses import replace
 import subprocess
 import sys
 from pathlib import Path
@@ -9,7 +10,7 @@ import pytest
 
 import cloudmeta as cm
 from cloudmeta.io import read_exr, write_exr
-from cloudmeta.renderer.estimate import coarser_quality, estimated_rel_rmse, finer_quality
+from cloudmeta.renderer.estimate import MAX_ANGLE, coarser_quality, estimated_rel_rmse, finer_quality, scaled_quality
 from cloudmeta.renderer import render
 from cloudmeta.renderer.quality import resolve_quality
 from validation.references import suite as S
@@ -39,6 +40,13 @@ def test_coarser_quality_scales_every_quadrature_setting():
     assert (c.tolerance, c.max_tau, c.max_length, c.max_angle) == (3 * q.tolerance, 2 * q.max_tau,
                                                                      2 * q.max_length, 2 * q.max_angle)
     assert (c.cutoff, c.tol_t) == (3 * q.cutoff, q.tol_t)
+    # the widest angle stays within the scene's own limit (1.6 radians): a point light's 1 / r^2 is lost beyond it
+    wide = coarser_quality(replace(q, max_angle=1.2, cutoff=0.3))
+    assert (wide.max_angle, wide.cutoff) == (MAX_ANGLE, 0.5) and MAX_ANGLE == 1.6
+    # the calibration's levels keep it within half that, so that the estimate's second render is coarser in every
+    # setting (at MAX_ANGLE in both, cumulus_point_inside's estimate came out 0.6x its true error)
+    high = scaled_quality(q, 5.0)
+    assert high.max_angle == MAX_ANGLE / 2 and coarser_quality(high).max_angle == MAX_ANGLE
 
 
 def test_estimated_rel_rmse_is_the_presets_measure():
