@@ -68,8 +68,8 @@ def _render(args):
                                            f"{scattered.rays} rays") + " (render.calibrate; docs/error_estimate.md)")
         from .renderer.pilot import MIN_TRUSTED
         if scattered.shorter:
-            print("cloudmeta: most of the calibration's steps took the Kronrod nodes: steps half as thick at a looser "
-                  "tolerance measured fewer nodes, and the frame takes them")
+            print("cloudmeta: most of the calibration reference's steps took the Kronrod nodes: the level above is on "
+                  "the shorter ladder (steps half as thick, half a step coarser otherwise)")
         if scattered.trusted is not None and scattered.trusted < MIN_TRUSTED:
             print(f"cloudmeta: shadows hybrid: the calibration trusted {100 * scattered.trusted:.0f} % of the shadow "
                   f"map's lookups (under {100 * MIN_TRUSTED:.0f} %): exact shadow rays instead")

@@ -28,9 +28,9 @@ MAX_LEVEL above the start, whose relative RMSE against that reference is at most
 (``calibrated_level``). Where the start itself measures above that, the frame is rendered up to one step finer,
 or two where the reference's own error, extrapolated from the errors of the start and of the step above it, is
 above that too.
-Where more than KRONROD_SHARE of the chosen grid's steps took the Kronrod nodes (and the grid is at most
-1/SHORTER_GRID of the frame), one more grid render tries steps half as thick at SHORTER_LEVEL steps coarser; the frame
-takes them where they pass the same limit with fewer nodes (the 1,200-ball bank: 36.2 -> 31.8 nodes per media pixel).
+Where more than KRONROD_SHARE of the reference's steps took the Kronrod nodes, the search runs on the shorter ladder:
+steps SHORTER_TAU as thick at SHORTER_LEVEL steps coarser (the 1,200-ball bank: 36.2 -> 31.5 nodes per media pixel at
+512 x 512); the fallbacks below level 0 stay on the ladder.
 Under ``shadows: hybrid``, a grid that trusts fewer than MIN_TRUSTED of its lookups turns the frame to exact
 shadow rays, and the search starts again with exact rays. Like the scale, the level depends on the whole frame.
 """
@@ -72,13 +72,12 @@ START = {"draft": 1.0, "default": 0.0, "fine": -1.0}
 #: top of the exact ray, a small fraction of it: at 512 x 512 (2026-12-05) the front-lit cumulus, trusting 25 %,
 #: rendered in 0.84x the time of exact shadows; the 1,200-ball bank, trusting 0.5 %, gained nothing
 MIN_TRUSTED = 0.1
-#: where more than this share of the chosen grid's steps took the Kronrod nodes, steps half as thick at SHORTER_LEVEL
-#: steps coarser are tried on the grid too, and kept where they pass with fewer nodes
+#: where more than this share of the calibration reference's steps took the Kronrod nodes, the search runs on the
+#: shorter ladder: steps SHORTER_TAU as thick at SHORTER_LEVEL steps coarser (the 1,200-ball bank: 39 % of its
+#: reference's steps; the front- and back-lit cumulus 16 % and 9 %)
 KRONROD_SHARE = 0.35
 SHORTER_LEVEL = 0.5
-#: ... only where the grid is at most 1/SHORTER_GRID of the frame: the try costs one more grid render, which on a
-#: small frame (the grid is the whole frame) costs what the frame does (the suite's 64 x 48 frames took 1.17-1.40x)
-SHORTER_GRID = 16
+SHORTER_TAU = 0.5
 #: the quadrature keys that, given explicitly, turn calibration off (the user chose the settings)
 QUADRATURE_KEYS = ("tolerance", "max_tau", "max_length", "max_angle", "cutoff")
 
@@ -251,9 +250,19 @@ def calibrate(scene, packed, quality, scale):
         image, grid_counts = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
         return image[..., :3].astype(np.float64), grid_counts
 
+    shorter = []  # [True] once the reference's steps showed that the frame takes the shorter ladder
+
+    def settings(level):
+        """The settings at ``level``: on the ladder, or on the shorter ladder (steps SHORTER_TAU as thick, SHORTER_LEVEL
+        steps coarser) where the reference's steps mostly took the Kronrod nodes."""
+        if not shorter:
+            return scaled_quality(ladder, start + level)
+        q = scaled_quality(ladder, start + level + SHORTER_LEVEL)
+        return replace(q, max_tau=q.max_tau * SHORTER_TAU)
+
     def pilot_at(level, exact=False):
         if (level, exact) not in images:
-            images[level, exact], counts[level, exact] = render_grid(scaled_quality(ladder, start + level), exact)
+            images[level, exact], counts[level, exact] = render_grid(settings(level), exact)
         return images[level, exact]
 
     def rel_rmse(image):
@@ -267,6 +276,8 @@ def calibrate(scene, packed, quality, scale):
     mean = float(reference.mean())
     if mean <= 0.0:
         return quality, scale
+    if kronrod_share(counts[-1.0, hybrid]) > KRONROD_SHARE:
+        shorter.append(True)
     # a hybrid grid that trusts fewer than MIN_TRUSTED of its lookups makes the frame trace exact rays: the search
     # then starts again with exact rays, so that the level is not chosen by the error of lookups the frame refuses
     exact_from = []  # the share trusted where the search turned to exact rays
@@ -284,22 +295,9 @@ def calibrate(scene, packed, quality, scale):
         level, predicted = calibrated_level(error_at, target)
     except _ExactRays:
         level, predicted = calibrated_level(error_at, target)
-    chosen = scaled_quality(ladder, start + level)
-    exact = bool(exact_from)
-    took_shorter = False
-    small_grid = SHORTER_GRID * size[0] * size[1] <= scene.image.width * scene.image.height
-    # (a measured level only: the fallbacks -1 and -2 have no grid of their own here)
-    if (predicted is not None and small_grid and (not hybrid or exact)
-            and kronrod_share(counts[level, exact]) > KRONROD_SHARE):
-        # most of the grid's steps took the Kronrod nodes: steps half as thick, at half a step's looser tolerance
-        coarser = scaled_quality(ladder, start + level + SHORTER_LEVEL)
-        shorter = replace(coarser, max_tau=coarser.max_tau * 0.5)
-        image, grid_counts = render_grid(shorter, exact)
-        e = rel_rmse(image)
-        nodes = grid_counts[..., COUNT_NODES].sum()
-        took_shorter = e <= SHARE * target and nodes < counts[level, exact][..., COUNT_NODES].sum()
-        if took_shorter:
-            chosen, predicted = shorter, e
+    # (the fallbacks -1 and -2, unmeasured, stay on the ladder: -1 is the reference itself)
+    took_shorter = bool(shorter) and predicted is not None
+    chosen = settings(level) if took_shorter else scaled_quality(ladder, start + level)
     trusted = None
     if hybrid:
         # (level -1 is the exact reference's render: no lookups, so exact rays; -2, finer still, likewise)

@@ -128,13 +128,11 @@ def test_kronrod_share_counts_the_steps_that_took_the_kronrod_nodes():
     assert pilot.kronrod_share(np.zeros((1, 1, N_COUNTS))) == 0.0
 
 
-def test_shorter_steps_are_taken_only_where_they_pass_with_fewer_nodes(monkeypatch):
-    """With the try forced on small frames (any Kronrod share, any grid): the bank at 64 x 48 takes the shorter steps
-    (they pass half the target with fewer nodes), the cumulus does not (they would cost more); the bank's measured
-    error passes, and its true error against a render at ``reference`` stays within the target."""
-    monkeypatch.setattr(pilot, "KRONROD_SHARE", -1.0)
-    monkeypatch.setattr(pilot, "SHORTER_GRID", 1)
-
+def test_the_shorter_ladder_is_searched_where_the_references_steps_took_the_kronrod_nodes(monkeypatch):
+    """The bank's calibration reference (64 x 48) sends more than KRONROD_SHARE of its steps to the Kronrod nodes, the
+    cumulus's fewer: the bank's search runs on the shorter ladder (steps SHORTER_TAU as thick, SHORTER_LEVEL coarser),
+    its measured error passes, and its true error against a render at ``reference`` stays within the target; with
+    the threshold out of reach it stays on the ladder."""
     def dark(name):
         s = cm.load_scene(ROOT / "scenes" / f"{name}.yaml", width=64, height=48)
         return replace(s, background=np.zeros(3), ambient=None)
@@ -147,7 +145,7 @@ def test_shorter_steps_are_taken_only_where_they_pass_with_fewer_nodes(monkeypat
                      np.float64)[..., :3]
     img = np.asarray(result.image, np.float64)[..., :3]
     assert np.sqrt(np.mean((img - ref) ** 2)) / ref.mean() <= 1e-3
-    monkeypatch.setattr(pilot, "KRONROD_SHARE", 2.0)  # never tried
+    monkeypatch.setattr(pilot, "KRONROD_SHARE", 2.0)  # never
     assert not render_frame(s, progress=False).scattered.shorter
 
 
