@@ -64,18 +64,51 @@ def estimated_rel_rmse(image, error, scattered_mean=0.0):
     return float(np.sqrt(np.mean(e * e))) / norm if norm > 0 else 0.0
 
 
+def background_seen(camera, background, window):
+    """Per pixel of the tile ``window`` = ((r0, r1), (c0, c1)), the background's radiance along the ray through the
+    pixel's centre (kernels.camera: camera_ray, background_radiance), H x W x 3; a uniform background as its one row."""
+    if background.shape[0] == 1:
+        return background[0]
+    (r0, r1), (c0, c1) = window
+    x = 2.0 * (np.arange(c0, c1) + 0.5) / camera.width - 1.0
+    y = 1.0 - 2.0 * (np.arange(r0, r1) + 0.5) / camera.height
+    d = camera.forward + x[None, :, None] * camera.right + y[:, None, None] * camera.up
+    dz = d[..., 2] / np.linalg.norm(d, axis=-1)
+    k = background.shape[0]
+    at = (np.arcsin(np.clip(dz, -1.0, 1.0)) / np.pi + 0.5) * (k - 1)
+    row = np.minimum(at.astype(np.int64), k - 2)
+    f = (at - row)[..., None]
+    return (1.0 - f) * background[row] + f * background[row + 1]
+
+
+def frame_scattered_mean(image, nearest, camera, background, window, sampled):
+    """The mean scattered radiance of the estimate's denominator: the image less the background seen through the
+    media (alpha = 1 - transmittance), where no surface is hit, from the image itself; where some pixel hits a
+    surface (whose shading is exact too, and not told apart) at least ``sampled``, the calibration's or the pilot's
+    mean. A sample of rays misses a bright spot that the frame does not: deck_point_inside's lamp at 256 x 192, whose
+    calibration grid measured 2.6x too little scattered light."""
+    rgb = np.asarray(image, np.float64)[..., :3]
+    transmittance = 1.0 - np.asarray(image, np.float64)[..., 3:4]
+    scattered = rgb - background_seen(camera, background, window) * transmittance
+    surface = np.isfinite(nearest)
+    if not surface.any():
+        return float(scattered.mean())
+    return max(float(sampled), float(np.where(surface[..., None], 0.0, scattered).mean()))
+
+
 def with_estimate(render_at, quality, target=None, scattered_mean=0.0):
     """(image, error, quality used, refinements): render_at(quality) -> H x W x 4 (float64) at the given
-    settings and at coarser ones; with a ``target`` relative RMSE (relative to ``scattered_mean``, see
-    estimated_rel_rmse), refined until the estimate is at most the target (or MAX_REFINEMENTS were made).
-    Each refinement's estimate is its difference to the render before it, which is exactly its coarser
-    render."""
+    settings and at coarser ones; with a ``target`` relative RMSE (relative to ``scattered_mean``, a number or a
+    function of the image, see estimated_rel_rmse), refined until the estimate is at most the target (or
+    MAX_REFINEMENTS were made). Each refinement's estimate is its difference to the render before it, which is
+    exactly its coarser render."""
+    norm = scattered_mean if callable(scattered_mean) else (lambda image: scattered_mean)
     image = render_at(quality)
     previous = render_at(coarser_quality(quality))
     error = np.abs(image[..., :3] - previous[..., :3])
     steps = 0
     while (target is not None and steps < MAX_REFINEMENTS
-           and estimated_rel_rmse(image, error, scattered_mean) > target):
+           and estimated_rel_rmse(image, error, norm(image)) > target):
         quality = finer_quality(quality)
         previous, image = image, render_at(quality)
         error = np.abs(image[..., :3] - previous[..., :3])

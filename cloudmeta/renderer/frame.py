@@ -19,7 +19,7 @@ from ..scene.vocabulary import SCATTERING_MODES
 from .bands import tile_window
 from .denoise import aux_images, denoise_paths, require_denoiser
 from .fluence import with_radiance_grid
-from .estimate import estimated_rel_rmse, with_estimate
+from .estimate import estimated_rel_rmse, frame_scattered_mean, with_estimate
 from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, render_multiple
 from .pack import pack_scene, quadrature
@@ -114,6 +114,9 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     quality, scattered = pilot_quality(scene, packed, base)
     packed = packed._replace(quadrature=quadrature(quality))
     target = scene.render.error
+
+    def scattered_norm(image, nearest):  # the estimate's denominator (renderer.estimate.frame_scattered_mean)
+        return frame_scattered_mean(image, nearest, packed.camera, packed.records.background, window, scattered.mean)
     if error or target is not None:  # renderer.estimate: a second, coarser render; refined to the target
         done = {}
 
@@ -121,7 +124,10 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
             packed_q = packed._replace(quadrature=quadrature(q))
             done[q] = (packed_q, *render_single(scene, packed_q, window, progress))
             return done[q][1]
-        image, err, quality, _ = with_estimate(at, quality, target, scattered.mean)
+
+        def norm(image):  # (the surfaces a ray hits do not depend on the settings: any render's nearest will do)
+            return scattered_norm(image, next(iter(done.values()))[2])
+        image, err, quality, _ = with_estimate(at, quality, target, norm)
         packed, _, nearest, counts = done[quality]
     else:
         err = None
@@ -138,8 +144,9 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         image[..., :3] += mean
         if err is not None:
             err = np.sqrt(err * err + stderr * stderr)
-    # the image's estimated relative RMSE, of the error as returned (Monte Carlo standard error included)
-    estimated = None if err is None else estimated_rel_rmse(image, err, scattered.mean)
+    # the image's estimated relative RMSE, of the error as returned (Monte Carlo standard error included), over the
+    # frame's own scattered light where it can tell it
+    estimated = None if err is None else estimated_rel_rmse(image, err, scattered_norm(image, nearest))
     approximation = None
     if error and estimator.approximation is not None:
         approximation = estimator.approximation(scene, image, packed, window, seed=seed)

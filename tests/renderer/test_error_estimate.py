@@ -10,7 +10,10 @@ import pytest
 
 import cloudmeta as cm
 from cloudmeta.io import read_exr, write_exr
-from cloudmeta.renderer.estimate import MAX_ANGLE, coarser_quality, estimated_rel_rmse, finer_quality, scaled_quality
+from cloudmeta.kernels.camera import background_radiance, camera_ray
+from cloudmeta.renderer.estimate import (MAX_ANGLE, background_seen, coarser_quality, estimated_rel_rmse, finer_quality,
+                                         frame_scattered_mean, scaled_quality)
+from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.renderer import render
 from cloudmeta.renderer.quality import resolve_quality
 from validation.references import suite as S
@@ -70,8 +73,40 @@ def test_estimate_brackets_the_true_error_on_suite_scenes(name):
     result = render_frame(s, progress=False, error=True)
     true = S.rel_rmse_scattered(result.image, ref, s.background)
     assert 0.5 * true <= result.estimated <= 10 * true
-    assert result.estimated == pytest.approx(estimated_rel_rmse(result.image, result.error, result.scattered.mean),
+    assert result.estimated == pytest.approx(estimated_rel_rmse(result.image, result.error, frame_norm(s, result)),
                                              rel=1e-6)  # (float32 outputs)
+
+
+def frame_norm(scene, result):
+    """The estimate's denominator for a whole frame (renderer.estimate.frame_scattered_mean)."""
+    packed = pack_scene(scene, 0)
+    window = ((0, scene.image.height), (0, scene.image.width))
+    return frame_scattered_mean(result.image, result.depth, packed.camera, packed.records.background, window,
+                                result.scattered.mean)
+
+
+def test_the_estimates_denominator_is_the_frames_own_scattered_light():
+    """The image less the background seen through the media (the sky per pixel, as the kernels see it along the
+    pixel's centre ray); where a pixel hits a surface, at least the sampled mean, the surface pixels counted as 0."""
+    s = cm.load_scene(ROOT / "scenes" / "generated_cumulus.yaml", width=7, height=5)
+    packed = pack_scene(s, 0)
+    camera, sky = packed.camera, packed.records.background
+    assert sky.shape[0] > 1
+    window = ((1, 4), (2, 7))
+    seen = background_seen(camera, sky, window)
+    d = np.empty(3)
+    for i in range(1, 4):
+        for j in range(2, 7):
+            camera_ray(camera, i, j, 0, 1, d)
+            assert np.allclose(seen[i - 1, j - 2], background_radiance(sky, d), rtol=1e-12, atol=0)
+    image = np.zeros((3, 5, 4))
+    image[..., :3] = seen * 0.25 + 0.1  # 0.1 of scattered light everywhere, the sky seen through 0.25
+    image[..., 3] = 0.75
+    nearest = np.full((3, 5), np.inf)
+    assert frame_scattered_mean(image, nearest, camera, sky, window, 5.0) == pytest.approx(0.1, rel=1e-12)
+    nearest[0, :] = 2.0  # a surface in the first row: its pixels count 0, and the sampled mean is a floor
+    assert frame_scattered_mean(image, nearest, camera, sky, window, 0.0) == pytest.approx(0.1 * 2 / 3, rel=1e-12)
+    assert frame_scattered_mean(image, nearest, camera, sky, window, 5.0) == 5.0
 
 
 def test_exr_error_channels_round_trip(tmp_path):
@@ -174,7 +209,7 @@ def test_estimated_rel_rmse_includes_the_monte_carlo_standard_error():
     s = cm.load_scene(ROOT / "scenes" / "cumulus.yaml", width=8, height=6)
     s = replace(s, ambient=None, render=replace(s.render, scattering="multiple", ms_spp=4, max_order=3))
     result = render_frame(s, progress=False, error=True)
-    assert result.estimated == pytest.approx(estimated_rel_rmse(result.image, result.error, result.scattered.mean),
+    assert result.estimated == pytest.approx(estimated_rel_rmse(result.image, result.error, frame_norm(s, result)),
                                              rel=1e-6)
     single = render_frame(replace(s, render=replace(s.render, scattering="single")), progress=False, error=True)
     assert result.estimated > single.estimated
