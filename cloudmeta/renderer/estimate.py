@@ -41,7 +41,8 @@ def scaled_quality(q, level):
         return q
     f = {key: factor ** level for key, factor in COARSER.items()}
     return replace(q, tolerance=q.tolerance * f["tolerance"], max_tau=q.max_tau * f["max_tau"],
-                   max_length=q.max_length * f["max_length"], max_angle=min(q.max_angle * f["max_angle"], MAX_ANGLE / COARSER["max_angle"]),
+                   max_length=q.max_length * f["max_length"],
+                   max_angle=min(q.max_angle * f["max_angle"], MAX_ANGLE / COARSER["max_angle"]),
                    cutoff=min(q.cutoff * f["cutoff"], 0.5))
 
 

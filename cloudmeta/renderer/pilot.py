@@ -46,7 +46,7 @@ from .estimate import scaled_quality
 from .pack import Packed, pack_camera, quadrature
 from .quality import resolve_quality
 from .single import render_single
-from ..kernels.lighting import COUNT_KRONROD, COUNT_NODES, COUNT_STEPS
+from ..kernels.lighting import COUNT_KRONROD, COUNT_STEPS
 
 #: the pilot samples every STRIDE-th pixel of the frame in each direction, or fewer so that its shorter side
 #: keeps MIN_SIDE pixels (all of them where the frame's is shorter still); its aspect is the frame's
@@ -85,8 +85,9 @@ QUADRATURE_KEYS = ("tolerance", "max_tau", "max_length", "max_angle", "cutoff")
 @dataclass(frozen=True)
 class LightScale:
     """What the pilot measured: ``mean``, the mean over its pixels and RGB of the scattered radiance (the
-    denominator of the presets' relative RMSE; on a calibrated frame, that of the calibration's reference); ``scale``, the RMS over its pixels of r + g + b (the
-    quadrature's absolute unit); ``width`` x ``height``, the pilot's grid."""
+    denominator of the presets' relative RMSE; on a calibrated frame, that of the calibration's reference);
+    ``scale``, the RMS over its pixels of r + g + b (the quadrature's absolute unit); ``width`` x ``height``, the
+    pilot's grid."""
     mean: float
     scale: float
     width: int
@@ -250,11 +251,21 @@ def calibrate(scene, packed, quality, scale):
         image, grid_counts = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
         return image[..., :3].astype(np.float64), grid_counts
 
-    shorter = []  # [True] once the reference's steps showed that the frame takes the shorter ladder
+    # with hybrid shadows the reference traces exact shadow rays: a hybrid map's error, which need not shrink
+    # with the tolerance (a puff between texel rays), then counts in full in every level's measure (``shadows:
+    # map`` always interpolates: its error is the user's choice, and the calibration scales the quadrature)
+    hybrid = 0.0 < quality.map_share < math.inf
+    images[-1.0, hybrid], counts[-1.0, hybrid] = render_grid(scaled_quality(ladder, start - 1.0), hybrid)
+    reference = images[-1.0, hybrid]
+    mean = float(reference.mean())
+    if mean <= 0.0:
+        return quality, scale
+    # where most of the reference's steps took the Kronrod nodes, the search runs on the shorter ladder
+    shorter = kronrod_share(counts[-1.0, hybrid]) > KRONROD_SHARE
 
     def settings(level):
-        """The settings at ``level``: on the ladder, or on the shorter ladder (steps SHORTER_TAU as thick, SHORTER_LEVEL
-        steps coarser) where the reference's steps mostly took the Kronrod nodes."""
+        """The settings at ``level``: on the ladder, or on the shorter ladder (steps SHORTER_TAU as thick,
+        SHORTER_LEVEL steps coarser)."""
         if not shorter:
             return scaled_quality(ladder, start + level)
         q = scaled_quality(ladder, start + level + SHORTER_LEVEL)
@@ -268,16 +279,6 @@ def calibrate(scene, packed, quality, scale):
     def rel_rmse(image):
         return float(np.sqrt(np.mean((image - reference) ** 2))) / mean
 
-    # with hybrid shadows the reference traces exact shadow rays: a hybrid map's error, which need not shrink
-    # with the tolerance (a puff between texel rays), then counts in full in every level's measure (``shadows:
-    # map`` always interpolates: its error is the user's choice, and the calibration scales the quadrature)
-    hybrid = 0.0 < quality.map_share < math.inf
-    reference = pilot_at(-1.0, exact=hybrid)
-    mean = float(reference.mean())
-    if mean <= 0.0:
-        return quality, scale
-    if kronrod_share(counts[-1.0, hybrid]) > KRONROD_SHARE:
-        shorter.append(True)
     # a hybrid grid that trusts fewer than MIN_TRUSTED of its lookups makes the frame trace exact rays: the search
     # then starts again with exact rays, so that the level is not chosen by the error of lookups the frame refuses
     exact_from = []  # the share trusted where the search turned to exact rays
@@ -296,7 +297,7 @@ def calibrate(scene, packed, quality, scale):
     except _ExactRays:
         level, predicted = calibrated_level(error_at, target)
     # (the fallbacks -1 and -2, unmeasured, stay on the ladder: -1 is the reference itself)
-    took_shorter = bool(shorter) and predicted is not None
+    took_shorter = shorter and predicted is not None
     chosen = settings(level) if took_shorter else scaled_quality(ladder, start + level)
     trusted = None
     if hybrid:
