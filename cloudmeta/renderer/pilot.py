@@ -25,9 +25,12 @@ ladder of settings, LADDER's preset scaled by ``level`` steps of renderer.estima
 (``scaled_quality``), each preset starting at START: one step below the start (the calibration's reference,
 with exact shadow rays under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to
 MAX_LEVEL above the start, whose relative RMSE against that reference is at most SHARE of the target
-(``calibrated_level``). Where the start itself measures above that, the frame is rendered up to one step finer,
-or two where the reference's own error, extrapolated from the errors of the start and of the step above it, is
-above that too.
+(``calibrated_level``): the step above the start first; where it fails, a try below it aimed as if the error grew
+GROWTH times a step, and the start itself only where that fails too; then regula falsi between the last level that
+passed and the first that failed, each try rendered only where the frame's nodes it would spare outweigh its own
+(``worth`` in ``calibrate``: at 64 x 48 the grid is the frame, and no try between is worth it). Where the start
+itself measures above the limit, the frame is rendered up to one step finer, or two where the reference's own
+error, extrapolated from the errors of the start and of the step above it, is above that too.
 Where more than KRONROD_SHARE of the reference's steps took the Kronrod nodes, the search runs on the shorter ladder:
 steps SHORTER_TAU as thick at SHORTER_LEVEL steps coarser (the 1,200-ball bank: 36.2 -> 31.5 nodes per media pixel at
 512 x 512); the fallbacks below level 0 stay on the ladder.
@@ -46,11 +49,13 @@ from .estimate import scaled_quality
 from .pack import Packed, pack_camera, quadrature
 from .quality import resolve_quality
 from .single import render_single
-from ..kernels.lighting import COUNT_KRONROD, COUNT_STEPS
+from ..kernels.lighting import COUNT_KRONROD, COUNT_NODES, COUNT_STEPS
 
 #: the pilot samples every STRIDE-th pixel of the frame in each direction, or fewer so that its shorter side
-#: keeps MIN_SIDE pixels (all of them where the frame's is shorter still); its aspect is the frame's
-STRIDE = 8
+#: keeps MIN_SIDE pixels (all of them where the frame's is shorter still); its aspect is the frame's. The scale only
+#: sets the unit of the tolerance, and a calibrated frame measures its error at the settings that unit gives: 1/256
+#: of the rays (32 x 32 at 512 x 512) costs a quarter of 1/64's (0.011 s against 0.036 s on the front-lit cumulus)
+STRIDE = 16
 MIN_SIDE = 16
 #: calibration: the frame's settings are the coarsest whose error on the calibration grid is at most SHARE of
 #: the target, at most MAX_LEVEL steps above the preset's START on the ladder (each step: tolerance and cutoff
@@ -62,6 +67,18 @@ MAX_LEVEL = 3.0
 CALIBRATION_RAYS = 4096
 #: renders spent between the last whole step that passed and the first that failed
 BETWEEN_TRIES = 3
+#: a try between a level that passed and one that failed is aimed at AIM x the limit, or at NARROW_AIM x the limit
+#: where the two are at most NARROW steps apart (``_between``)
+AIM = 0.9
+NARROW_AIM = 0.95
+NARROW = 0.25
+#: a try between two levels is rendered only where the frame's nodes it would spare (at the rate the grid's nodes
+#: fell between the two) are WORTH times its own: it may fail, and then spares nothing (``calibrate``)
+WORTH = 1.5
+#: where level 1 fails, the first try below it is aimed as if the error grew GROWTH times a step (the tolerance's own
+#: factor); only where that try fails too is level 0 rendered. At 512 x 512 the grid's error grew 3.45x / 3.0x / 2.6x
+#: from level 0 to 1 on the front-lit cumulus, the back-lit one and the bank (2026-12-05)
+GROWTH = 3.0
 #: calibrated frames take their settings on one ladder: LADDER's preset scaled by 3^level / 2^level, each preset
 #: starting at START (draft's fixed settings are about one step coarser than default's, fine's one finer; on
 #: the cumulus at 256 x 256 fine's own settings, calibrated, took 3.5 s where default's reached lower error in 2.3 s)
@@ -163,24 +180,33 @@ def calibrates(scene):
             and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
 
 
-def calibrated_level(error_at, target):
+def calibrated_level(error_at, target, worth=None):
     """(level, its measured error or None): the coarsest level in [0, MAX_LEVEL] whose error_at(level) is at
-    most SHARE x target, searched at whole steps from 1 (most scenes pass there: it spares level 0's render)
-    and then between the last that passed and the first that failed; where level 0 itself measures above
-    that, a level between -1 (one step finer than the preset) and 0, or -2 where even the reference at -1 seems
-    to err too much (``_finer``)."""
+    most SHARE x target, searched at whole steps from 1 (most scenes pass there: it spares level 0's render);
+    where 1 fails, at a level below it aimed with GROWTH (where that passes, level 0's render is spared too); then
+    between the last that passed and the first that failed (``_between``, each try where ``worth`` holds); where
+    level 0 itself measures above that, a level between -1 (one step finer than the preset) and 0, or -2 where
+    even the reference at -1 seems to err too much (``_finer``)."""
     limit = SHARE * target
     e_one = error_at(1.0)
     if e_one > limit:
+        failed, e_failed = 1.0, e_one
+        # aimed below 1 with the ladder's own growth: where it passes, level 0's render is spared
+        aimed = 1.0 - math.log(e_one / (AIM * limit)) / math.log(GROWTH)
+        if aimed > 0.0:
+            e_aimed = error_at(aimed)
+            if e_aimed <= limit:
+                return _between(error_at, aimed, e_aimed, 1.0, e_one, limit, worth)
+            failed, e_failed = aimed, e_aimed
         e_zero = error_at(0.0)
         if e_zero > limit:
             return _finer(error_at, e_one, e_zero, limit)
-        return _between(error_at, 0.0, e_zero, 1.0, e_one, limit)
+        return _between(error_at, 0.0, e_zero, failed, e_failed, limit, worth)
     last, e_last = 1.0, e_one
     while last < MAX_LEVEL:
         e = error_at(last + 1.0)
         if e > limit:
-            return _between(error_at, last, e_last, last + 1.0, e, limit)
+            return _between(error_at, last, e_last, last + 1.0, e, limit, worth)
         last, e_last = last + 1.0, e
     return last, e_last
 
@@ -212,16 +238,19 @@ def _finer(error_at, e_one, e_zero, limit):
     return (-2.0 if e_zero / measured > limit else -1.0), None
 
 
-def _between(error_at, passed, e_passed, failed, e_failed, limit):
+def _between(error_at, passed, e_passed, failed, e_failed, limit, worth=None):
     """(level, error): the coarsest level found between ``passed`` and ``failed`` whose error is at most
-    ``limit``, by at most BETWEEN_TRIES steps of regula falsi on the log of the error, each aimed at 0.9 x
-    ``limit`` (aimed at the limit itself, a curved error lands just above it and the step is lost); else
-    ``passed``."""
+    ``limit``, by at most BETWEEN_TRIES steps of regula falsi on the log of the error, each aimed at AIM x
+    ``limit``, or NARROW_AIM x ``limit`` where the two are at most NARROW apart (aimed at the limit itself, a
+    curved error lands just above it and the step is lost; between close levels the log of the error is nearly
+    straight); else ``passed``. A try is rendered only where worth(passed, failed, level) holds (by default: it
+    is at least 0.05 above ``passed``)."""
     for _ in range(BETWEEN_TRIES):
-        if not 0.0 < e_passed < 0.9 * limit < e_failed:
+        aim = (NARROW_AIM if failed - passed <= NARROW else AIM) * limit
+        if not 0.0 < e_passed < aim < e_failed:
             break
-        level = passed + (failed - passed) * math.log(0.9 * limit / e_passed) / math.log(e_failed / e_passed)
-        if level < passed + 0.05:
+        level = passed + (failed - passed) * math.log(aim / e_passed) / math.log(e_failed / e_passed)
+        if not (worth(passed, failed, level) if worth is not None else level >= passed + 0.05):
             break
         e = error_at(level)
         if e <= limit:
@@ -292,10 +321,24 @@ def calibrate(scene, packed, quality, scale):
                 raise _ExactRays
         return rel_rmse(image)
 
+    def nodes_at(level):
+        return float(counts[level, bool(exact_from)][..., COUNT_NODES].sum())
+
+    def worth(passed, failed, level):
+        """Whether the grid's render at ``level`` may pay for itself: the share of the frame's nodes it would spare,
+        at the rate the grid's nodes fell from ``passed`` to ``failed``, times the frame's rays over the grid's, is at
+        least WORTH (it costs about one grid's nodes)."""
+        n_passed, n_failed = nodes_at(passed), nodes_at(failed)
+        if not 0.0 < n_failed < n_passed:
+            return False
+        spared = 1.0 - (n_failed / n_passed) ** ((level - passed) / (failed - passed))
+        return spared * frame_rays / (size[0] * size[1]) >= WORTH
+
+    frame_rays = scene.image.width * scene.image.height
     try:
-        level, predicted = calibrated_level(error_at, target)
+        level, predicted = calibrated_level(error_at, target, worth)
     except _ExactRays:
-        level, predicted = calibrated_level(error_at, target)
+        level, predicted = calibrated_level(error_at, target, worth)
     # (the fallbacks -1 and -2, unmeasured, stay on the ladder: -1 is the reference itself)
     took_shorter = shorter and predicted is not None
     chosen = settings(level) if took_shorter else scaled_quality(ladder, start + level)

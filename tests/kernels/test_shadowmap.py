@@ -133,12 +133,13 @@ def scattered_rel_rmse(img, ref, background):
 
 
 def test_hybrid_shadows_keep_the_quality_and_count_their_work():
-    """shadows: hybrid against exact shadow rays at 48 x 48, default: within a tenth of the target relative
-    to the scattered light; part of the nodes take the map, the rest an exact ray,
+    """shadows: hybrid against exact shadow rays at 48 x 48, default's own settings (not calibrated: each mode's
+    calibration may choose its own level, and the quadrature's difference would then count too): within a tenth
+    of the target relative to the scattered light; part of the nodes take the map, the rest an exact ray,
     and the counters add up: per pixel, lookups = nodes (one directional light), trusted + exact = lookups."""
-    exact = render_frame(cumulus(48, quality="default"), progress=False)
-    hybrid = render_frame(cumulus(48, quality="default", shadows="hybrid"), progress=False)
-    plain = render_frame(cumulus(48, quality="default", shadows="map"), progress=False)
+    exact = render_frame(cumulus(48, quality="default", calibrate=False), progress=False)
+    hybrid = render_frame(cumulus(48, quality="default", shadows="hybrid", calibrate=False), progress=False)
+    plain = render_frame(cumulus(48, quality="default", shadows="map", calibrate=False), progress=False)
     bg = cumulus().background
     err = scattered_rel_rmse(np.float64(hybrid.image), np.float64(exact.image), bg)
     err_map = scattered_rel_rmse(np.float64(plain.image), np.float64(exact.image), bg)
@@ -149,7 +150,7 @@ def test_hybrid_shadows_keep_the_quality_and_count_their_work():
     n = hybrid.counts
     np.testing.assert_array_equal(n[..., 2], n[..., 0])
     np.testing.assert_array_equal(n[..., 3] + n[..., 1], n[..., 2])
-    assert 0.2 * ch["nodes"] < ch["trusted"] < ch["nodes"]
+    assert 0.1 * ch["nodes"] < ch["trusted"] < ch["nodes"]  # 18 % at default's own settings
     # shadows: map trusts every lookup
     np.testing.assert_array_equal(plain.counts[..., 3], plain.counts[..., 2])
     assert plain.cost()["exact_rays"] == 0

@@ -19,8 +19,8 @@ from cloudmeta.renderer.pilot import (CALIBRATION_RAYS, MAX_LEVEL, MIN_SIDE, MIN
 ROOT = Path(__file__).resolve().parents[2]
 
 
-@pytest.mark.parametrize("size, expected", [((512, 512), (64, 64)), ((64, 48), (22, 16)), ((4, 3), (4, 3)),
-                                            ((1920, 1080), (240, 135)), ((100, 20), (100, 20))])
+@pytest.mark.parametrize("size, expected", [((512, 512), (32, 32)), ((64, 48), (22, 16)), ((4, 3), (4, 3)),
+                                            ((1920, 1080), (120, 68)), ((100, 20), (100, 20))])
 def test_pilot_grid_keeps_the_aspect_and_a_minimum_side(size, expected):
     assert pilot_size(*size) == expected
     w, h = pilot_size(*size)
@@ -118,6 +118,47 @@ def test_a_finer_level_that_fails_is_tried_again_with_the_growth_it_measured():
     second = first + math.log(0.45e-3 / 5.2e-4) / math.log((8e-4 / 5.2e-4) ** (1.0 / -first))
     assert calls == pytest.approx([1.0, 0.0, first, second])
     assert (level, measured) == (pytest.approx(second), 3e-4)
+
+
+def test_where_level_one_fails_the_first_try_is_aimed_with_the_ladders_growth():
+    """Level 1 measures above the limit: the next try is aimed at AIM of the limit as if the error grew GROWTH times
+    a step. Where it passes, level 0 is never rendered, and the search goes on between it and level 1; where it
+    fails, level 0 is rendered and the search runs between level 0 and the try."""
+    limit = SHARE * 1e-3
+    calls = []
+
+    def error_at(level):
+        calls.append(level)
+        return 0.15 * limit * 9.0 ** level  # 9x a step: the try aimed with 3x passes well below the limit
+    level, measured = calibrated_level(error_at, 1e-3)
+    aimed = 1.0 - math.log(1.35 / pilot.AIM) / math.log(pilot.GROWTH)
+    second = aimed + (1.0 - aimed) * math.log(pilot.AIM / (0.15 * 9.0 ** aimed)) / math.log(1.35 / (0.15 * 9.0 ** aimed))
+    assert pilot.GROWTH == 3.0 and calls == pytest.approx([1.0, aimed, second])
+    assert 1.0 - aimed > pilot.NARROW  # so the second aims at AIM; the third, at NARROW_AIM, would gain too little
+    assert level == pytest.approx(second) and measured == pytest.approx(pilot.AIM * limit)
+
+    calls.clear()
+    slow = {1.0: 1.2 * limit, 0.0: 0.5 * limit}  # grows 2.4x a step: the try aimed with 3x lands above the limit
+    level, measured = calibrated_level(lambda lv: calls.append(lv) or slow.get(lv, 1.05 * limit), 1e-3)
+    assert calls[:3] == pytest.approx([1.0, 1.0 - math.log(1.2 / pilot.AIM) / math.log(3.0), 0.0])
+    assert (level, measured) == (0.0, 0.5 * limit)  # every try between them failed
+
+
+def test_a_try_between_close_levels_aims_nearer_the_limit_where_it_is_worth_its_render():
+    """Between two levels at most NARROW apart the try aims at NARROW_AIM of the limit; a ``worth`` that refuses it
+    keeps the level that passed."""
+    limit = SHARE * 1e-3
+    aimed = 1.0 - math.log(1.002 / pilot.AIM) / math.log(pilot.GROWTH)
+    e = {1.0: 1.002 * limit, aimed: 0.87 * limit}
+    tried = []
+    level, measured = calibrated_level(lambda lv: tried.append(lv) or e.get(lv, 0.94 * limit), 1e-3)
+    narrow = aimed + (1.0 - aimed) * math.log(pilot.NARROW_AIM / 0.87) / math.log(1.002 / 0.87)
+    assert 1.0 - aimed <= pilot.NARROW and tried[:3] == pytest.approx([1.0, aimed, narrow])
+    assert (level, measured) == (pytest.approx(narrow), 0.94 * limit)
+    asked = []
+    level, measured = calibrated_level(lambda lv: e.get(lv, 0.94 * limit), 1e-3,
+                                       worth=lambda passed, failed, lv: asked.append((passed, failed, lv)) or False)
+    assert asked == [(aimed, 1.0, pytest.approx(narrow))] and (level, measured) == (aimed, 0.87 * limit)
 
 
 def test_kronrod_share_counts_the_steps_that_took_the_kronrod_nodes():
