@@ -110,7 +110,7 @@ def intervals_depth(n_iv, threshold, mode, tol_t, scratch):
     return rho_integral(f_int, length, mode, threshold), entries
 
 
-@njit(**NJIT)
+@njit(**NJIT_INLINE)
 def column_density(o, d, tmin, tmax, blob, mode, tol_t, cand, n_cand, scratch):
     """The integral of rho over {F >= T} along the ray within [tmin, tmax] through ``blob`` (its balls
     cand[:n_cand]), rho by density ``mode`` (docs/model.md §4): the optical depth over the medium's scale.
