@@ -22,7 +22,7 @@ from .fluence import with_radiance_grid
 from .estimate import estimated_rel_rmse, frame_scattered_mean, with_estimate
 from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, render_multiple
-from .pack import pack_scene, quadrature
+from .pack import pack_scene, quadrature, without_maps
 from .pilot import pilot_quality
 from .quality import scene_quality
 from .single import render_single
@@ -113,6 +113,10 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     packed = with_radiance_grid(scene, pack_scene(scene, seed, base), seed)  # the grid method's photons, once
     quality, scattered = pilot_quality(scene, packed, base)
     packed = packed._replace(quadrature=quadrature(quality))
+    if quality.map_share == 0.0 and scene.render.shadows == "hybrid":
+        # the calibration turned a hybrid frame to exact shadow rays (renderer.pilot MIN_TRUSTED): the kernel compiled
+        # for exact shadows, without the map code, runs it 3 % faster (the 1,200-ball bank at 512 x 512)
+        packed = packed._replace(records=without_maps(scene, packed.records))
     target = scene.render.error
 
     def scattered_norm(image, nearest):  # the estimate's denominator (renderer.estimate.frame_scattered_mean)

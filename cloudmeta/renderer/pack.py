@@ -133,6 +133,17 @@ def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
                         octaves=octaves, radiance=None, view_media=med)
 
 
+def without_maps(scene, records) -> SceneRecords:
+    """``records`` as a scene with exact shadow rays has them (``scene_records``): no shadow maps, and no surface
+    record where the scene has no surfaces, so that a frame whose shadow rays are all exact runs the kernel compiled
+    for exact shadows, without the map code (renderer.frame)."""
+    if records.lights.maps is None:
+        return records
+    if not scene.surfaces:
+        return records._replace(surfaces=None, lights=records.lights._replace(maps=None))
+    return records._replace(lights=records.lights._replace(maps=no_shadow_maps(len(scene.lights))))
+
+
 def single_octave():
     """The octaves of single scattering (kernels.single.octave_phase): one, (a^0, b^0, c^0) = (1, 1, 1)."""
     return np.ones((1, 3))

@@ -273,12 +273,21 @@ def test_hybrid_calibration_measures_against_a_reference_with_exact_shadow_rays(
 def test_hybrid_calibration_that_turns_to_exact_rays_chooses_the_exact_level(monkeypatch):
     """shadows: hybrid: where a level's grid trusts fewer than MIN_TRUSTED of its lookups the frame traces exact
     rays, so the search starts again with exact rays: the level is then the one exact shadows get, not one chosen
-    by the error of lookups the frame refuses (every grid 'trusts too few' here: MIN_TRUSTED above 1)."""
-    from cloudmeta.renderer import pilot
+    by the error of lookups the frame refuses (every grid 'trusts too few' here: MIN_TRUSTED above 1). The frame then
+    runs the kernel compiled for exact shadows: its records hold no maps (pack.without_maps)."""
+    from cloudmeta.renderer import frame as frame_module, pilot
     monkeypatch.setattr(pilot, "MIN_TRUSTED", 1.01)
+    maps = []
+    original = frame_module.render_single
+
+    def recording(scene, packed, *args):
+        maps.append(packed.records.lights.maps)
+        return original(scene, packed, *args)
+    monkeypatch.setattr(frame_module, "render_single", recording)
     s = cm.load_scene(ROOT / "scenes" / "cumulus.yaml", width=48, height=40)
     exact = render_frame(s, progress=False)
     hybrid = render_frame(replace(s, render=replace(s.render, shadows="hybrid")), progress=False)
+    assert maps == [None, None]
     assert hybrid.scattered.level == exact.scattered.level
     assert 0.0 < hybrid.scattered.trusted < 1.01
     assert hybrid.cost()["lookups"] == 0.0
