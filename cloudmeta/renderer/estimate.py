@@ -11,6 +11,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from .pack import background_along, pixel_directions
+
 #: how much coarser each quadrature setting of the estimate's second render is (finer: divided by these)
 COARSER = dict(tolerance=3.0, max_tau=2.0, max_length=2.0, max_angle=2.0, cutoff=3.0)
 #: error-controlled renders refine at most this often (each step costs about twice the one before)
@@ -67,19 +69,14 @@ def estimated_rel_rmse(image, error, scattered_mean=0.0):
 
 def background_seen(camera, background, window):
     """Per pixel of the tile ``window`` = ((r0, r1), (c0, c1)), the background's radiance along the ray through the
-    pixel's centre (kernels.camera: camera_ray, background_radiance), H x W x 3; a uniform background as its one row."""
+    pixel's centre (renderer.pack: pixel_directions, background_along), H x W x 3; a uniform background as its one
+    row."""
     if background.shape[0] == 1:
         return background[0]
     (r0, r1), (c0, c1) = window
-    x = 2.0 * (np.arange(c0, c1) + 0.5) / camera.width - 1.0
-    y = 1.0 - 2.0 * (np.arange(r0, r1) + 0.5) / camera.height
-    d = camera.forward + x[None, :, None] * camera.right + y[:, None, None] * camera.up
-    dz = d[..., 2] / np.linalg.norm(d, axis=-1)
-    k = background.shape[0]
-    at = (np.arcsin(np.clip(dz, -1.0, 1.0)) / np.pi + 0.5) * (k - 1)
-    row = np.minimum(at.astype(np.int64), k - 2)
-    f = (at - row)[..., None]
-    return (1.0 - f) * background[row] + f * background[row + 1]
+    rows, cols = np.mgrid[r0:r1, c0:c1]
+    directions = pixel_directions(camera, rows.ravel(), cols.ravel())
+    return background_along(background, directions).reshape(r1 - r0, c1 - c0, 3)
 
 
 def frame_scattered_mean(image, nearest, camera, background, window, sampled):

@@ -180,7 +180,13 @@ def calibrates(scene):
             and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
 
 
-def calibrated_level(error_at, target, worth=None):
+def a_twentieth_above(passed, failed, level):
+    """``calibrated_level``'s default ``worth``: a try between two levels is rendered where it is at least a twentieth
+    of a step above the level that passed."""
+    return level >= passed + 0.05
+
+
+def calibrated_level(error_at, target, worth=a_twentieth_above):
     """(level, its measured error or None): the coarsest level in [0, MAX_LEVEL] whose error_at(level) is at
     most SHARE x target, searched at whole steps from 1 (most scenes pass there: it spares level 0's render);
     where 1 fails, at a level below it aimed with GROWTH (where that passes, level 0's render is spared too); then
@@ -238,19 +244,18 @@ def _finer(error_at, e_one, e_zero, limit):
     return (-2.0 if e_zero / measured > limit else -1.0), None
 
 
-def _between(error_at, passed, e_passed, failed, e_failed, limit, worth=None):
+def _between(error_at, passed, e_passed, failed, e_failed, limit, worth):
     """(level, error): the coarsest level found between ``passed`` and ``failed`` whose error is at most
     ``limit``, by at most BETWEEN_TRIES steps of regula falsi on the log of the error, each aimed at AIM x
     ``limit``, or NARROW_AIM x ``limit`` where the two are at most NARROW apart (aimed at the limit itself, a
     curved error lands just above it and the step is lost; between close levels the log of the error is nearly
-    straight); else ``passed``. A try is rendered only where worth(passed, failed, level) holds (by default: it
-    is at least 0.05 above ``passed``)."""
+    straight); else ``passed``. A try is rendered only where worth(passed, failed, level) holds."""
     for _ in range(BETWEEN_TRIES):
         aim = (NARROW_AIM if failed - passed <= NARROW else AIM) * limit
         if not 0.0 < e_passed < aim < e_failed:
             break
         level = passed + (failed - passed) * math.log(aim / e_passed) / math.log(e_failed / e_passed)
-        if not (worth(passed, failed, level) if worth is not None else level >= passed + 0.05):
+        if not worth(passed, failed, level):
             break
         e = error_at(level)
         if e <= limit:
@@ -324,6 +329,9 @@ def calibrate(scene, packed, quality, scale):
     def nodes_at(level):
         return float(counts[level, bool(exact_from)][..., COUNT_NODES].sum())
 
+    grid_rays = size[0] * size[1]
+    frame_rays = scene.image.width * scene.image.height
+
     def worth(passed, failed, level):
         """Whether the grid's render at ``level`` may pay for itself: the share of the frame's nodes it would spare,
         at the rate the grid's nodes fell from ``passed`` to ``failed``, times the frame's rays over the grid's, is at
@@ -332,9 +340,8 @@ def calibrate(scene, packed, quality, scale):
         if not 0.0 < n_failed < n_passed:
             return False
         spared = 1.0 - (n_failed / n_passed) ** ((level - passed) / (failed - passed))
-        return spared * frame_rays / (size[0] * size[1]) >= WORTH
+        return spared * frame_rays / grid_rays >= WORTH
 
-    frame_rays = scene.image.width * scene.image.height
     try:
         level, predicted = calibrated_level(error_at, target, worth)
     except _ExactRays:
@@ -350,7 +357,7 @@ def calibrate(scene, packed, quality, scale):
             chosen = replace(chosen, map_share=0.0)
     # the frame's mean scattered radiance becomes the reference's: more rays at finer settings than the pilot's, whose
     # few rays can miss a small bright spot (a lamp inside a deck: 25x too dark at 64 x 48, and every estimate 25x high)
-    return chosen, replace(scale, mean=mean, level=start + level, predicted=predicted, rays=size[0] * size[1],
+    return chosen, replace(scale, mean=mean, level=start + level, predicted=predicted, rays=grid_rays,
                            trusted=trusted, shorter=took_shorter)
 
 
