@@ -20,6 +20,8 @@ the approximation approximates). Printed for single scattering, the octaves and 
     python -m validation.accuracy.approximate report [--no-csv]
     python -m validation.accuracy.approximate deposits --paths 4096   (render.grid.deposit, 4 reference seeds)
     python -m validation.accuracy.approximate timing --size 512 [--repeats 3]
+    python -m validation.accuracy.approximate levels --paths 1024 [--repeats 2]   (fewer cells and photons:
+        error at --size, time at 512 x 512 against single scattering)
     python -m validation.accuracy.approximate figure --size 128 --paths 256   (docs/approximate_cumulus.png)
 """
 from __future__ import annotations
@@ -262,6 +264,35 @@ def timing(args):
     return out
 
 
+#: the grid's (cells, photons, deposit) below `default`'s (40, 2^23) that ``levels`` measures
+GRID_LEVELS = {"24/2^21": (24, 1 << 21, "flights"), "32/2^22": (32, 1 << 22, "flights")}
+
+
+def levels(args):
+    """The grid method at fewer cells and photons (GRID_LEVELS): its error on the report scenes at --size (two
+    seeds), then its time at 512 x 512 against single scattering (the scene files), alternating as ``timing``."""
+    for label, grid in GRID_LEVELS.items():
+        errors = []
+        for name, path in REPORT.items():
+            e, noise, sec, _ = grid_error(name, path, args.size, args.paths, grid=grid)
+            errors.append(e)
+            print(f"{label} {name:14s} error {e:.4f} noise {noise:.4f} {sec:.1f} s", flush=True)
+        print(label, "worst", max(errors), flush=True)
+    for name in ("cumulus.yaml", "cumulus_backlit.yaml"):
+        single = cm.load_scene(ROOT / "scenes" / name, width=512, height=512)
+        approx = with_settings(replace(single, ambient=None), scattering="approximate", method="grid")
+        runs = {"single": (single,), **{label: (with_settings(approx, grid=g),) for label, g in GRID_LEVELS.items()}}
+
+        def run(scene):
+            t0 = time.perf_counter()
+            cm.render(scene, progress=False)
+            return time.perf_counter() - t0
+        times = alternate(runs, args.repeats, run)
+        med = {k: float(np.median(v)) for k, v in times.items()}
+        print(name, ", ".join(f"{k} {med[k]:.2f} s ({min(v):.2f}-{max(v):.2f}, {med[k] / med['single']:.2f}x)"
+                              for k, v in times.items()), flush=True)
+
+
 def figure(args):
     """docs/approximate_cumulus.png: the shipped cumulus front- and back-lit, single scattering (the scene file
     as it is), the octaves, the grid, 16 denoised paths per pixel and multiple scattering (--paths per pixel),
@@ -318,13 +349,13 @@ def figure(args):
 
 def main(argv=None, quick=False):
     ap = parser(__doc__, no_csv=True)
-    ap.add_argument("what", choices=("references", "fit", "tune", "report", "deposits", "timing", "figure"))
+    ap.add_argument("what", choices=("references", "fit", "tune", "report", "deposits", "timing", "levels", "figure"))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--paths", type=int, default=512)
     args, quick = parse(ap, argv, quick)
     return {"references": references, "fit": fit, "tune": tune, "report": report, "deposits": deposits,
-            "timing": timing, "figure": figure}[args.what](args)
+            "timing": timing, "levels": levels, "figure": figure}[args.what](args)
 
 
 if __name__ == "__main__":
