@@ -20,6 +20,7 @@ the approximation approximates). Printed for single scattering, the octaves and 
     python -m validation.accuracy.approximate report [--no-csv]
     python -m validation.accuracy.approximate deposits --paths 4096   (render.grid.deposit, 4 reference seeds)
     python -m validation.accuracy.approximate timing --size 512 [--repeats 3]
+    python -m validation.accuracy.approximate bias --paths 16384   (where the grid misses: docs/approximate_grid_bias.png)
     python -m validation.accuracy.approximate levels --paths 1024 [--repeats 2]   (fewer cells and photons:
         error at --size, time at 512 x 512 against single scattering)
     python -m validation.accuracy.approximate figure --size 128 --paths 256   (docs/approximate_cumulus.png)
@@ -293,6 +294,54 @@ def levels(args):
                               for k, v in times.items()), flush=True)
 
 
+#: the report scenes where the grid misses most (``bias``)
+BIAS_SCENES = ("cumulus_back", "bank_front", "wispy_puffs")
+#: the pixels' alpha bins of ``bias``'s table
+ALPHA_BINS = (0.0, 0.3, 0.6, 0.9, 0.99, 0.9999, 1.01)
+
+
+def bias(args, seeds=3):
+    """Where the grid method (`default`, deposits along flights) misses: the mean of ``seeds`` grid images against
+    the --paths reference on BIAS_SCENES, printed per bin of the pixels' alpha (mean and RMS of the residual
+    over the frame's mean scattered light) and drawn as docs/approximate_grid_bias.png."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(len(BIAS_SCENES), 3, figsize=(11, 2.6 * len(BIAS_SCENES)), dpi=100,
+                             constrained_layout=True)
+    for row, name in enumerate(BIAS_SCENES):
+        u, se, bt, _ = reference(name, REPORT[name], args.size, args.paths)
+        s = with_settings(scene_of(REPORT[name], args.size, "approximate", method="grid"), quality="default")
+        images = [cm.render(s, progress=False, seed=k) for k in range(seeds)]
+        alpha = images[0][..., 3]
+        mean = np.mean([im[..., :3] for im in images], axis=0).astype(np.float64)
+        scattered = float(np.mean(u - bt))
+        residual = (mean - u).mean(axis=-1) / scattered
+        cloud = alpha > 0
+        print(f"{name}: the {seeds} seeds' mean against the reference, {rel_error(mean, u, se, bt):.3f} (its noise "
+              f"not subtracted); residual over the mean scattered light by the pixels' alpha:", flush=True)
+        for lo, hi in zip(ALPHA_BINS[:-1], ALPHA_BINS[1:]):
+            k = cloud & (alpha >= lo) & (alpha < hi)
+            if k.any():
+                print(f"  alpha {lo:.4f}-{min(hi, 1.0):.4f}: {int(k.sum()):4d} pixels, mean {residual[k].mean():+.3f}, RMS "
+                      f"{np.sqrt(np.mean(residual[k] ** 2)):.3f}, share of the squared residual "
+                      f"{np.sum(residual[k] ** 2) / np.sum(residual[cloud] ** 2):.2f}", flush=True)
+        ref = u.mean(axis=-1)
+        axes[row, 0].imshow(np.clip(ref / np.percentile(ref, 99.5), 0, 1) ** (1 / 2.2), cmap="gray")
+        axes[row, 0].set_title(f"{name}: reference ({args.paths} paths)", fontsize=9)
+        im = axes[row, 1].imshow(np.where(cloud, residual, 0.0), cmap="RdBu_r", vmin=-0.5, vmax=0.5)
+        axes[row, 1].set_title(f"grid (mean of {seeds} seeds) - reference", fontsize=9)
+        axes[row, 2].imshow(alpha, cmap="gray", vmin=0, vmax=1)
+        axes[row, 2].set_title("alpha", fontsize=9)
+        for ax in axes[row]:
+            ax.set_xticks([])
+            ax.set_yticks([])
+    fig.colorbar(im, ax=axes[:, 1].tolist(), shrink=0.6, label="over the frame's mean scattered light")
+    out = ROOT / "docs" / "approximate_grid_bias.png"
+    fig.savefig(out)
+    print(f"wrote {out}")
+
+
 def figure(args):
     """docs/approximate_cumulus.png: the shipped cumulus front- and back-lit, single scattering (the scene file
     as it is), the octaves, the grid, 16 denoised paths per pixel and multiple scattering (--paths per pixel),
@@ -349,13 +398,13 @@ def figure(args):
 
 def main(argv=None, quick=False):
     ap = parser(__doc__, no_csv=True)
-    ap.add_argument("what", choices=("references", "fit", "tune", "report", "deposits", "timing", "levels", "figure"))
+    ap.add_argument("what", choices=("references", "fit", "tune", "report", "deposits", "timing", "levels", "bias", "figure"))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--paths", type=int, default=512)
     args, quick = parse(ap, argv, quick)
     return {"references": references, "fit": fit, "tune": tune, "report": report, "deposits": deposits,
-            "timing": timing, "levels": levels, "figure": figure}[args.what](args)
+            "timing": timing, "levels": levels, "bias": bias, "figure": figure}[args.what](args)
 
 
 if __name__ == "__main__":
