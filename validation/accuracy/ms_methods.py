@@ -1,14 +1,15 @@
 """Time against error for every way cloudmeta renders multiply scattered light (issue #25 item 4): single
-scattering, the approximate mode (octaves), unbiased multiple scattering and the same denoised, on
+scattering, the approximate mode (octaves and grid), unbiased multiple scattering and the same denoised, on
 validation.accuracy.approximate's six report scenes, against their converged references.
 
 Per scene (64 x 48 unless --size, ambient removed; the references of approximate.py, 1,024 paths unless
---paths, seed 0): single scattering and the octaves at ``default``; multiple scattering at ``default`` with
+--paths, seed 0): single scattering, the octaves and the grid at ``default``; multiple scattering at ``default`` with
 each of ``--spp`` paths per pixel (seed 1), raw and with ``denoise=True``. The time is the whole
 render_frame call, kernels loaded; the error the relative RMSE over the mean scattered radiance, the
 reference's own variance subtracted (approximate.rel_error). Prints a table, writes
-validation/results/ms_methods_SIZE.csv and plots error against time per scene to ms_methods_SIZE.png
-(the grid method of the approximate mode is not built).
+validation/results/ms_methods_SIZE.csv and plots error against time per scene to ms_methods_SIZE.png.
+The grid's time is nearly all its photons, which do not depend on the image size: at 512 x 512 it is
+7-11x single scattering (docs/approximate.md), not the 50-150x seen here.
 
     python -m validation.accuracy.ms_methods [--size 64] [--paths 1024] [--spp 4 16 64 256] [--no-csv]
 """
@@ -41,7 +42,8 @@ def main(argv=None):
         single = with_settings(scene_of(path, args.size), quality="default")
         approx = with_settings(scene_of(path, args.size, "approximate"), quality="default")
         render_frame(with_settings(scene_of(path, 4, "multiple"), ms_spp=1), progress=False)  # kernels loaded
-        runs = [("single", single, {}), ("octaves", approx, {})]
+        grid = with_settings(scene_of(path, args.size, "approximate", method="grid"), quality="default")
+        runs = [("single", single, {}), ("octaves", approx, {}), ("grid", grid, {})]
         for n in args.spp:
             s = with_settings(scene_of(path, args.size, "multiple"), quality="default", ms_spp=n)
             runs += [(f"paths {n}", s, dict(seed=1)), (f"denoised {n}", s, dict(seed=1, denoise=True))]
@@ -66,10 +68,10 @@ def plot(rows, out, size):
             pts = [r for r in mine if r["method"].startswith(kind)]
             ax.plot([r["seconds"] for r in pts], [r["error"] for r in pts], style,
                     label="multiple, unbiased" if kind == "paths" else "multiple, denoised")
-        for method, marker in (("single", "v"), ("octaves", "^")):
+        for method, marker, label in (("single", "v", "single scattering"), ("octaves", "^", "approximate (octaves)"),
+                                      ("grid", "D", "approximate (grid)")):
             r = next(r for r in mine if r["method"] == method)
-            ax.plot([r["seconds"]], [r["error"]], marker, markersize=9,
-                    label="single scattering" if method == "single" else "approximate (octaves)")
+            ax.plot([r["seconds"]], [r["error"]], marker, markersize=9, label=label)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_title(name, fontsize=10)
