@@ -20,7 +20,8 @@ the approximation approximates). Printed for single scattering, the octaves and 
     python -m validation.accuracy.approximate report [--no-csv]
     python -m validation.accuracy.approximate deposits --paths 4096   (render.grid.deposit, 4 reference seeds)
     python -m validation.accuracy.approximate timing --size 512 [--repeats 3]
-    python -m validation.accuracy.approximate bias --paths 16384   (where the grid misses: docs/approximate_grid_bias.png)
+    python -m validation.accuracy.approximate bias --paths 16384   (where the grid misses:
+        docs/approximate_grid_bias.png)
     python -m validation.accuracy.approximate levels --paths 1024 [--repeats 2]   (fewer cells and photons:
         error at --size, time at 512 x 512 against single scattering)
     python -m validation.accuracy.approximate figure --size 128 --paths 256   (docs/approximate_cumulus.png)
@@ -243,6 +244,12 @@ def deposits(args):
     return {"rows": rows}
 
 
+def render_seconds(scene):
+    """The seconds cm.render takes on the scene (``timing`` and ``levels``)."""
+    t0 = time.perf_counter()
+    cm.render(scene, progress=False)
+    return time.perf_counter() - t0
+
 def timing(args):
     """512 x 512 (--size 512 to get it), default quality: single scattering (the scene file as it is) against the
     approximate mode (ambient removed), the two alternating, --repeats rounds after one untimed."""
@@ -252,12 +259,7 @@ def timing(args):
         single = cm.load_scene(path, width=args.size, height=args.size)
         approx = with_settings(replace(single, ambient=None), scattering="approximate")
         grid = with_settings(approx, method="grid")
-
-        def run(scene):
-            t0 = time.perf_counter()
-            cm.render(scene, progress=False)
-            return time.perf_counter() - t0
-        times = alternate({"single": (single,), "octaves": (approx,), "grid": (grid,)}, args.repeats, run)
+        times = alternate({"single": (single,), "octaves": (approx,), "grid": (grid,)}, args.repeats, render_seconds)
         med = {k: float(np.median(v)) for k, v in times.items()}
         print(f"{name}: " + ", ".join(f"{k} {med[k]:.2f} s ({min(v):.2f}-{max(v):.2f}, {med[k] / med['single']:.2f}x)"
                                       for k, v in times.items()), flush=True)
@@ -283,12 +285,7 @@ def levels(args):
         single = cm.load_scene(ROOT / "scenes" / name, width=512, height=512)
         approx = with_settings(replace(single, ambient=None), scattering="approximate", method="grid")
         runs = {"single": (single,), **{label: (with_settings(approx, grid=g),) for label, g in GRID_LEVELS.items()}}
-
-        def run(scene):
-            t0 = time.perf_counter()
-            cm.render(scene, progress=False)
-            return time.perf_counter() - t0
-        times = alternate(runs, args.repeats, run)
+        times = alternate(runs, args.repeats, render_seconds)
         med = {k: float(np.median(v)) for k, v in times.items()}
         print(name, ", ".join(f"{k} {med[k]:.2f} s ({min(v):.2f}-{max(v):.2f}, {med[k] / med['single']:.2f}x)"
                               for k, v in times.items()), flush=True)
@@ -307,7 +304,7 @@ def bias(args, seeds=3):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(len(BIAS_SCENES), 3, figsize=(11, 2.6 * len(BIAS_SCENES)), dpi=100,
+    fig, axes = plt.subplots(len(BIAS_SCENES), 3, figsize=(11, 2.6 * len(BIAS_SCENES)), dpi=100, squeeze=False,
                              constrained_layout=True)
     for row, name in enumerate(BIAS_SCENES):
         u, se, bt, _ = reference(name, REPORT[name], args.size, args.paths)
@@ -323,8 +320,8 @@ def bias(args, seeds=3):
         for lo, hi in zip(ALPHA_BINS[:-1], ALPHA_BINS[1:]):
             k = cloud & (alpha >= lo) & (alpha < hi)
             if k.any():
-                print(f"  alpha {lo:.4f}-{min(hi, 1.0):.4f}: {int(k.sum()):4d} pixels, mean {residual[k].mean():+.3f}, RMS "
-                      f"{np.sqrt(np.mean(residual[k] ** 2)):.3f}, share of the squared residual "
+                print(f"  alpha {lo:.4f}-{min(hi, 1.0):.4f}: {int(k.sum()):4d} pixels, mean {residual[k].mean():+.3f}, "
+                      f"RMS {np.sqrt(np.mean(residual[k] ** 2)):.3f}, share of the squared residual "
                       f"{np.sum(residual[k] ** 2) / np.sum(residual[cloud] ** 2):.2f}", flush=True)
         ref = u.mean(axis=-1)
         axes[row, 0].imshow(np.clip(ref / np.percentile(ref, 99.5), 0, 1) ** (1 / 2.2), cmap="gray")
@@ -398,7 +395,8 @@ def figure(args):
 
 def main(argv=None, quick=False):
     ap = parser(__doc__, no_csv=True)
-    ap.add_argument("what", choices=("references", "fit", "tune", "report", "deposits", "timing", "levels", "bias", "figure"))
+    ap.add_argument("what", choices=("references", "fit", "tune", "report", "deposits", "timing", "levels", "bias",
+                                     "figure"))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--paths", type=int, default=512)

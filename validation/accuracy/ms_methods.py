@@ -9,7 +9,7 @@ render_frame call, kernels loaded; the error the relative RMSE over the mean sca
 reference's own variance subtracted (approximate.rel_error). Prints a table, writes
 validation/results/ms_methods_SIZE.csv and plots error against time per scene to ms_methods_SIZE.png.
 The grid's time is nearly all its photons, which do not depend on the image size: at 512 x 512 it is
-7-11x single scattering (docs/approximate.md), not the 50-150x seen here.
+7-11x single scattering (docs/approximate.md), not the 7-180x seen at 64 x 48.
 
     python -m validation.accuracy.ms_methods [--size 64] [--paths 1024] [--spp 4 16 64 256] [--no-csv]
 """
