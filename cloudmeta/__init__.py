@@ -23,18 +23,18 @@ from .renderer import render
 #: public name -> the submodule that defines it
 _EXPORTS = {
     "Blob": "scene.blob",
-    "field": "engine", "first_hit": "engine", "gradient": "engine", "normal": "engine",
-    "optical_depth": "engine", "roots": "engine", "segments": "engine",
-    "CloudmetaError": "errors", "InputError": "errors", "SceneError": "errors",
-    "read_exr": "io", "write_exr": "io", "write_png": "io",
+    "field": "api.rays", "first_hit": "api.rays", "gradient": "api.rays", "normal": "api.rays",
+    "optical_depth": "api.rays", "roots": "api.rays", "segments": "api.rays",
+    "CloudmetaError": "errors", "InputError": "errors", "SceneError": "errors", "OutputError": "errors",
+    "read_exr": "api.io", "write_exr": "api.io", "write_png": "api.io",
     "load_scene": "scene", "render_frame": "renderer", "RenderResult": "renderer",
-    "render_frames": "cluster",
+    "render_frames": "api.cluster",
     "generate": "generate", "write_scene": "generate",
 }
 
 __all__ = ["Blob", "field", "first_hit", "gradient", "normal", "optical_depth", "roots", "segments", "load_scene",
            "render", "render_frame", "RenderResult", "render_frames", "write_exr", "read_exr", "write_png", "CloudmetaError", "InputError",
-           "SceneError", "generate", "write_scene"]
+           "SceneError", "OutputError", "generate", "write_scene"]
 __version__ = "0.1.0"
 
 

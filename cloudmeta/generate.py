@@ -1212,7 +1212,7 @@ def csv_text(cloud, command=None):
 
 
 def _check_target(path, label, ext, overwrite):
-    from .io import check_output_path
+    from .api.io import check_output_path
     full = check_output_path(path, ext, label)
     if os.path.lexists(full):
         if not overwrite:
@@ -1234,7 +1234,7 @@ def check_scene_paths(yaml_path, csv_path=None, overwrite=False):
     The scene must end in .yaml or .yml and the balls file in .csv (default: the scene's name with .csv),
     in the same folder, which must exist and be writable; an existing file is refused unless overwrite,
     and even then unless cloudmeta generate wrote it (its first line says so); the two must differ."""
-    from .io import same_file
+    from .api.io import same_file
     yaml_path = os.fspath(yaml_path)
     ext = os.path.splitext(yaml_path)[1]
     if ext.lower() not in (".yaml", ".yml"):
@@ -1278,7 +1278,7 @@ def write_scene(cloud, yaml_path, csv_path=None, width=None, height=None, overwr
     line says so): a hand-made scene or balls file, which other scenes may read, is never written over.
     ``width`` and ``height`` set the image (default 512 x 512; 640 x 360 for a deck); ``command`` is
     recorded in a comment line. Returns (yaml path, csv path), absolute."""
-    from .io import atomic_outputs
+    from .api.io import atomic_outputs
     from .scene.limits import MAX_SIDE
     if not isinstance(cloud, Cloud):
         raise InputError(f"cloud: expected a Cloud from cloudmeta.generate, got {type(cloud).__name__}")

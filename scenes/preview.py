@@ -1,7 +1,7 @@
 """A quick look at a scene from its own camera: every surface's isosurface F = T, opaque, in its colour, and
 every medium's F = T as a faint translucent shell, lit by the scene's directional lights (pyvista, off screen).
 
-Not the renderer: marching cubes on a sampled grid (``cloudmeta.inspect.sample_grid``), VTK's own shading,
+Not the renderer: marching cubes on a sampled grid (``cloudmeta.api.viewer.sample_grid``), VTK's own shading,
 no shadows, no scattering. It is for framing and shapes: does the camera show the whole object, is the
 isosurface smooth and in one piece, does a hand have five fingers. Seconds per scene on two cores.
 
@@ -21,7 +21,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository's cloudmeta
 
 from cloudmeta import load_scene  # noqa: E402
-from cloudmeta.inspect import _prepare_off_screen, sample_grid  # noqa: E402
+from cloudmeta.api.viewer import _prepare_off_screen, sample_grid  # noqa: E402
 from cloudmeta.scene import DirectionalLight  # noqa: E402
 
 

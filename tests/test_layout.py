@@ -1,6 +1,7 @@
 """The package's layout, drawn from its imports (issue #22): three floors that import only downwards.
 
-    top level   cloudmeta/*.py          public API, cli, cluster, io, inspect, engine, runtime, precompile
+    top level   cloudmeta/              public API; cli/ (command line), api/ (rays, io, viewer, cluster,
+                                        runtime), generate
     renderer    cloudmeta/renderer/     Scene -> linear image
     scene       cloudmeta/scene/        YAML -> validated, frozen Scene
     kernels     cloudmeta/kernels/      numba only

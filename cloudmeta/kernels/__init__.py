@@ -25,7 +25,7 @@ single     -- the single-scattering estimator (in stages) and its image loop
 multiple   -- the multiple-scattering estimator (paths) and its image loop: a sibling of single, sharing
               camera, raywork and lighting, importing nothing from single
 trace      -- batches of rays and points in parallel, for the public API
-grid       -- the field on a regular grid, with a spatial cull (cloudmeta.inspect)
+grid       -- the field on a regular grid, with a spatial cull (cloudmeta.api.viewer)
 
 The kernel cache (config) hashes every module of this folder: keep it flat.
 """

@@ -11,7 +11,7 @@ rho over the inside parts of a ray is a function of the integral of F and their 
 (``rho_integral``, the shadow rays of kernels.shadow). A mode that is not affine in F (F^2, say) needs its
 own control values (degree elevation) and its own shadow-ray integral; none of the three above would hold.
 
-The ids live in kernels.kinds; cloudmeta.inspect evaluates rho on numpy arrays through ``rho_value.py_func``,
+The ids live in kernels.kinds; cloudmeta.api.viewer evaluates rho on numpy arrays through ``rho_value.py_func``,
 so the formula is written once.
 """
 from numba import njit

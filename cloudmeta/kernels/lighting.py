@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit
 
 from .config import NJIT, NJIT_INLINE
-from .features import light_map, map_depth, surfaces_blocking
+from .optional import light_map, map_depth, surfaces_blocking
 from .kinds import DIRECTIONAL
 from .media import shadow_transmittance
 from .optics import phase

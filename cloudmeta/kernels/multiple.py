@@ -50,10 +50,10 @@ from .shadowmap import volume_optical_depth
 from .metaball import gradient_sum
 from .optics import phase
 from .bvh import bvh_point_candidates, misses_root_boxes
-from .features import surface_hit, surfaces_blocking
+from .optional import surface_hit, surfaces_blocking
 from .camera import background_radiance, camera_ray
 from .lighting import light_at_node, light_geometry
-from .raywork import alloc_ray_work, elementary_intervals
+from .intervals import alloc_ray_work, elementary_intervals
 from .borrow import borrow, hold_grown, release
 from .records import CameraSegment, PathKey, PathVectors, RayWork
 from .sampling import free_flight, sample_phase_cos, sobol4, turn, uniform

@@ -104,7 +104,7 @@ PhotonSources = namedtuple("PhotonSources", ["kind", "vec", "rgb", "first", "cen
 #: highest Legendre coefficients. Then the render's quality settings (cloudmeta.renderer.quality.resolve_quality):
 #: max_tau, max_length, max_angle, cutoff, u_stop = -log(cutoff) (the view optical depth past which
 #: nothing is shaded; inf for cutoff 0), tol_t (the root tolerance on t, absolute), tolerance, and
-#: light_scale (the frame's scattered-light scale that tolerance is relative to, cloudmeta.renderer.pilot; 0:
+#: light_scale (the frame's scattered-light scale that tolerance is relative to, cloudmeta.renderer.calibrate; 0:
 #: relative to each ray's brightest J instead), and map_tolerance: the error of J (r + g + b, weighted by the view
 #: transmittance, absolute) that a shadow map's interpolation may make at a node before an exact shadow ray
 #: replaces it (``shadows: hybrid``; inf for ``shadows: map``, which always trusts the map; kernels.lighting);

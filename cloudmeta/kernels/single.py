@@ -68,13 +68,13 @@ from .bernstein import bernstein_cumulative, bernstein_eval
 from .borrow import borrow, hold_grown, release
 from .bvh import misses_root_boxes
 from .camera import background_radiance, background_sample, camera_ray
-from .features import grid_light, has_grid, misses_surfaces, surface_hit
+from .optional import grid_light, has_grid, misses_surfaces, surface_hit
 from .lighting import (COUNT_FOLDS, COUNT_KRONROD, COUNT_NODES, COUNT_SPLITS, COUNT_STEPS, angular_cuts,
                        light_at_node)
 from .media import collect_media
 from .optics import phase
 from .records import RayWork, StepState
-from .raywork import alloc_ray_work, depth_at, elementary_intervals
+from .intervals import alloc_ray_work, depth_at, elementary_intervals
 from .surfaces import SHADOW_OFFSET, surface_normal
 
 #: a step is split at most this deep where its Kronrod and Gauss results disagree (the pending parts, at most

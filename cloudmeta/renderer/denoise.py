@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels.multiple import aux_pixels
-from .bands import run_bands
+from .threads import run_bands
 
 
 def require_denoiser(scene):

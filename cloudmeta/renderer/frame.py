@@ -14,16 +14,16 @@ import numpy as np
 from ..errors import InputError
 from ..kernels.lighting import (COUNT_EXACT, COUNT_FOLDS, COUNT_KRONROD, COUNT_LOOKUPS, COUNT_NODES, COUNT_SPLITS,
                                 COUNT_STEPS, COUNT_TRUSTED, N_COUNTS)
-from ..scene.schema import Scene
+from ..scene.model import Scene
 from ..scene.vocabulary import SCATTERING_MODES
-from .bands import tile_window
+from .threads import tile_window
 from .denoise import aux_images, denoise_paths, require_denoiser
 from .fluence import with_radiance_grid
 from .estimate import estimated_rel_rmse, frame_scattered_mean, with_estimate
 from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, render_multiple
 from .pack import pack_scene, quadrature, without_maps
-from .pilot import pilot_quality
+from .calibrate import pilot_quality
 from .quality import scene_quality
 from .single import render_single
 

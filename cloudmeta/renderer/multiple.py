@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..kernels.multiple import render_paths
-from .bands import run_bands, tile_window
+from .threads import run_bands, tile_window
 from .pack import pack_scene
 from .tracking import path_settings, paths_grid, paths_volumes
 

@@ -22,7 +22,7 @@ from ..kernels.records import (BVH, Camera, LightVolumes, Lights, MapPieces, Med
 from ..kernels.shadowmap import fill_volume_chunk, trace_texel_chunk
 from ..scene.atmosphere import sky_mean
 from ..scene.vocabulary import MAP_SHADOWS, SHADOW_MAP_RESOLUTION
-from .bands import n_chunks
+from .threads import n_chunks
 from .quality import Quality, scene_quality
 
 #: map pieces reserved per texel for the single tracing pass (a map that needs more is traced again)

@@ -52,7 +52,7 @@ import math
 from dataclasses import dataclass
 
 
-from ..scene.schema import RenderSettings
+from ..scene.model import RenderSettings
 from ..scene.vocabulary import HYBRID_SHARE, QUALITIES
 
 #: the quadrature presets (issue #23): each is a target of the image's RMSE over its mean scattered radiance

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..kernels.lighting import N_COUNTS
 from ..kernels.single import render_pixels
-from .bands import run_bands
+from .threads import run_bands
 
 
 def render_single(scene, packed, window, progress):

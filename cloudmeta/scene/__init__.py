@@ -13,7 +13,7 @@ colour      -- colours of the scene (colour-science) and the sRGB encoding of pr
 limits      -- the numeric limits (README "Limits")
 """
 from .loader import load_scene
-from .schema import (Camera, Density, DirectionalLight, ImageSettings, Medium, OutputSettings, Phase, PointLight,
+from .model import (Camera, Density, DirectionalLight, ImageSettings, Medium, OutputSettings, Phase, PointLight,
                      RenderSettings, Scene, Surface)
 
 __all__ = ["load_scene", "Camera", "Density", "DirectionalLight", "ImageSettings", "Medium", "OutputSettings",

@@ -5,7 +5,7 @@ error is a ``SceneError`` naming the file, the key path (``media[0].balls[12].ra
 expected; unknown keys are errors, at every level. A half-valid scene is never returned.
 
 The section readers are here; the document layer (safe YAML, typed getters) is cloudmeta.scene.document,
-the balls cloudmeta.scene.balls, the numeric domain cloudmeta.scene.domain, keyframes
+the balls cloudmeta.scene.balls, the numeric domain cloudmeta.scene.feasibility, keyframes
 cloudmeta.scene.animation.
 """
 from __future__ import annotations
@@ -20,8 +20,8 @@ from .animation import naming_frame, resolve_frame
 from .balls import read_blob
 from .colour import DEFAULT_COLOURSPACE, colourspace_name
 from .document import Context, Node, fmt_numbers, frozen_array, read_yaml
-from .domain import check_domain
-from .schema import Camera, Density, ImageSettings, Medium, OutputSettings, Phase, RenderSettings, Scene, Surface
+from .feasibility import check_domain
+from .model import Camera, Density, ImageSettings, Medium, OutputSettings, Phase, RenderSettings, Scene, Surface
 from .atmosphere import DEFAULT_GROUND_ALBEDO, sky_mean
 from .lights import SUN_KEYS, SunLight, read_light, read_sun, unit
 from .vocabulary import (APPROXIMATE_METHODS, DENSITY_MODES, GRID_DEPOSITS, OCTAVES, PHASE_PARAMS, QUALITIES,

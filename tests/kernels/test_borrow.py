@@ -6,7 +6,7 @@ import cloudmeta as cm
 from cloudmeta.kernels.borrow import borrow, hold_grown, release
 from cloudmeta.kernels.lighting import N_COUNTS
 from cloudmeta.kernels.media import alloc_ray_pieces, grow_ray_pieces
-from cloudmeta.kernels.raywork import alloc_node_work
+from cloudmeta.kernels.intervals import alloc_node_work
 from cloudmeta.kernels.records import RayWork
 from cloudmeta.kernels.single import render_pixels
 from cloudmeta.kernels.sweep import alloc_scratch, capacity_of

@@ -126,7 +126,7 @@ def _files(folder, suffix):
 
 
 def test_the_kernels_have_their_own_cache_and_other_functions_numbas():
-    from cloudmeta.kernels.trace import field_at
+    from cloudmeta.kernels.batch import field_at
     if not config.CACHE:  # CLOUDMETA_NO_CACHE: numba's no-cache
         assert type(field_at._cache) is NullCache and config.cache_problem().startswith("caching is off")
         return
@@ -137,7 +137,7 @@ def test_the_kernels_have_their_own_cache_and_other_functions_numbas():
 
 
 def test_the_locator_answers_for_kernels_alone_even_where_the_folder_cannot_be_written(tmp_path, monkeypatch):
-    from cloudmeta.kernels.trace import field_at
+    from cloudmeta.kernels.batch import field_at
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     monkeypatch.setattr(config._KernelCacheLocator, "folder", blocker / "numba-x")

@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from cloudmeta.kernels import features
+from cloudmeta.kernels import optional as features
 from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.scene import load_scene
 

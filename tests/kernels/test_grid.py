@@ -1,8 +1,8 @@
-"""The cell grid of cloudmeta.inspect (cloudmeta.kernels.grid) against its naive twin: every ball's padded
+"""The cell grid of cloudmeta.api.viewer (cloudmeta.kernels.grid) against its naive twin: every ball's padded
 box in every cell it touches, in ball order, and the culled field equal to the unculled sum."""
 import numpy as np
 
-from cloudmeta.engine import blob_record
+from cloudmeta.api.rays import blob_record
 from cloudmeta.kernels.grid import bin_balls, sample_field
 from cloudmeta.kernels.records import CellGrid
 from tests import naive

@@ -7,7 +7,7 @@ from scipy.optimize import brentq
 
 import cloudmeta as cm
 
-from cloudmeta.engine import blob_record
+from cloudmeta.api.rays import blob_record
 from cloudmeta.kernels import shadow as ksh
 from cloudmeta.kernels import sweep as ks
 from cloudmeta.kernels.kinds import DENSITY_FIELD, DENSITY_MODES

@@ -3,7 +3,7 @@ sorts against numpy's, the density modes against docs/model.md §4."""
 import numpy as np
 import pytest
 
-from cloudmeta.engine import blob_record
+from cloudmeta.api.rays import blob_record
 from cloudmeta.kernels import sweep as ks
 from cloudmeta.kernels.bernstein import bernstein_eval
 from tests import naive

@@ -15,7 +15,7 @@ from cloudmeta.kernels.tracking import (DIM_LIGHT, alloc_track_work, delta_fligh
                                         tracked_transmittance, walk_advance, walk_cell, walk_start)
 from cloudmeta.renderer.pack import pack_media
 from cloudmeta.renderer.tracking import majorant_grid
-from cloudmeta.scene.schema import Density, Medium, Phase
+from cloudmeta.scene.model import Density, Medium, Phase
 from tests import naive
 from tests.conftest import random_blob
 

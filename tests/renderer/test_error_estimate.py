@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import cloudmeta as cm
-from cloudmeta.io import read_exr, write_exr
+from cloudmeta.api.io import read_exr, write_exr
 from cloudmeta.kernels.camera import background_radiance, camera_ray
 from cloudmeta.renderer.estimate import (MAX_ANGLE, background_seen, coarser_quality, estimated_rel_rmse, finer_quality,
                                          frame_scattered_mean, scaled_quality)

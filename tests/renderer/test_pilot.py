@@ -12,8 +12,8 @@ from cloudmeta.renderer import render_frame
 from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.errors import SceneError
 from cloudmeta.kernels.lighting import COUNT_KRONROD, COUNT_STEPS, N_COUNTS
-from cloudmeta.renderer import pilot
-from cloudmeta.renderer.pilot import (CALIBRATION_RAYS, MAX_LEVEL, MIN_SIDE, MIN_TRUSTED, SHARE, STRIDE,
+from cloudmeta.renderer import calibrate as pilot
+from cloudmeta.renderer.calibrate import (CALIBRATION_RAYS, MAX_LEVEL, MIN_SIDE, MIN_TRUSTED, SHARE, STRIDE,
                                       calibrated_level, calibration_size, light_scale, pilot_size)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -249,7 +249,7 @@ def test_hybrid_shadows_trace_exact_rays_where_the_calibration_trusted_few_looku
 def test_hybrid_calibration_measures_against_a_reference_with_exact_shadow_rays(monkeypatch):
     """shadows: hybrid: the calibration's reference (one step below the start) traces exact shadow rays, so a
     map's error counts in full in each level's measure; the levels themselves keep the maps."""
-    from cloudmeta.renderer import pilot
+    from cloudmeta.renderer import calibrate as pilot
     seen = []
     original = pilot.pilot_render
 
@@ -275,7 +275,8 @@ def test_hybrid_calibration_that_turns_to_exact_rays_chooses_the_exact_level(mon
     rays, so the search starts again with exact rays: the level is then the one exact shadows get, not one chosen
     by the error of lookups the frame refuses (every grid 'trusts too few' here: MIN_TRUSTED above 1). The frame then
     runs the kernel compiled for exact shadows: its records hold no maps (pack.without_maps)."""
-    from cloudmeta.renderer import frame as frame_module, pilot
+    from cloudmeta.renderer import frame as frame_module
+from cloudmeta.renderer import calibrate as pilot
     monkeypatch.setattr(pilot, "MIN_TRUSTED", 1.01)
     maps = []
     original = frame_module.render_single

@@ -12,7 +12,7 @@ from scipy import ndimage
 
 from cloudmeta import load_scene
 from cloudmeta.scene.blob import rotation_matrix
-from cloudmeta.inspect import sample_grid
+from cloudmeta.api.viewer import sample_grid
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 YAMLS = sorted(SCENES.glob("*.yaml"))

@@ -33,7 +33,7 @@ print(json.dumps({"field": values.tolist(),
 #: ``cloudmeta compile`` with its jobs replaced (the real ones compile every renderer: minutes)
 COMPILE = """
 import sys
-import cloudmeta.precompile as precompile
+import cloudmeta.cli.compile as precompile
 precompile.jobs = lambda folder: {jobs!r}
 from cloudmeta.cli import main
 sys.exit(main(["compile", "--jobs", "1"]))
@@ -230,7 +230,7 @@ def test_compile_where_nothing_can_be_cached_says_so_and_fails(tmp_path, setting
 
 @pytest.mark.parametrize("state", ["cached", "not writable", "caching off"])
 def test_compile_notice_says_then_cached_only_where_it_is(state, monkeypatch, capsys):
-    from cloudmeta import runtime
+    from cloudmeta.api import runtime
     from cloudmeta.kernels import config
     monkeypatch.setattr(config, "is_compiled", lambda dispatcher: False)
     monkeypatch.setattr(config, "CACHE", state != "caching off")

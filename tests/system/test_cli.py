@@ -160,7 +160,7 @@ def test_render_frames_with_an_output_writes_no_png_unless_asked(workdir):
     """The API's sequences follow the same rule: an explicit output without png writes no PNG; an empty
     path is refused naming its label (Outputs) before any work."""
     import cloudmeta as cm
-    from cloudmeta.cluster import Outputs
+    from cloudmeta.api.cluster import Outputs
     before = set(os.listdir(workdir))
     small = dict(width=8, height=8, render={"quality": "draft"}, progress=False)
     report = cm.render_frames(workdir / "cumulus.yaml", [0], str(workdir / "f_{frame}.exr"), **small)
@@ -189,7 +189,8 @@ def test_version_and_plain_help(capsys):
 def test_a_failing_png_leaves_no_exr(workdir, monkeypatch, capsys):
     """Both outputs are renamed into place only when both are written: a PNG that fails to encode leaves
     neither (nor a temporary file)."""
-    from cloudmeta import cli, io
+    from cloudmeta import cli
+from cloudmeta.api import io
 
     def broken_png(*args, **kwargs):
         raise OSError(28, "No space left on device")
@@ -269,7 +270,7 @@ def test_a_render_killed_with_sigkill_leaves_temporaries_that_the_next_render_re
 def test_compile_jobs_cover_both_kinds_of_scene(tmp_path):
     """cloudmeta compile: its scenes load, and they are of both kinds the kernels compile for (without
     surfaces and maps: None records; with them: full records), in single and multiple scattering."""
-    from cloudmeta.precompile import jobs
+    from cloudmeta.cli.compile import jobs
     from cloudmeta.renderer.pack import pack_scene
     from cloudmeta.scene import load_scene
     names = [name for name, _ in jobs(tmp_path)]

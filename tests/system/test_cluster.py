@@ -1,4 +1,4 @@
-"""Frames and tiles (cloudmeta.cluster): tiles equal to the whole frame, and a 2-worker local Dask cluster
+"""Frames and tiles (cloudmeta.api.cluster): tiles equal to the whole frame, and a 2-worker local Dask cluster
 that renders the same bits as this process, loses no frame when a worker dies, and writes each frame once."""
 import logging
 import os
@@ -9,7 +9,7 @@ import pytest
 from distributed import Client, LocalCluster, WorkerPlugin
 
 import cloudmeta as cm
-from cloudmeta.cluster import render_frames, tile_windows
+from cloudmeta.api.cluster import render_frames, tile_windows
 
 from tests.scene.test_animation import ANIMATED, write_scene
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import cloudmeta as cm
-from cloudmeta.inspect import sigma_t
+from cloudmeta.api.viewer import sigma_t
 from validation.peers import mitsuba_peer as mp
 
 SCENE = """

@@ -4,7 +4,7 @@ at equal wall time.
 Mitsuba 3.8.0 (``pip install mitsuba==3.8.0``, variant ``llvm_ad_rgb``; 3.9 aborts on Debian's LLVM) renders
 the same scene with ``volpath`` (high ``max_depth``) through a ``heterogeneous`` medium whose ``sigma_t`` is a
 ``gridvolume``: cloudmeta's own sigma_t = scale * rho(F(x)) (MODEL.md §4) sampled at the voxel centres
-(cloudmeta.inspect.sample_grid), trilinearly interpolated by Mitsuba (drjit textures are cell-centred:
+(cloudmeta.api.viewer.sample_grid), trilinearly interpolated by Mitsuba (drjit textures are cell-centred:
 voxel i covers [i, i + 1] h and holds the value at its centre). The grid has N voxels along the bounding
 box's longest side and cubic voxels (so "256^3" is 256 x 154 x 158 on the cumulus). Everything else is the
 scene's: albedo, HG phase, the directional light (Mitsuba's ``direction`` is the way the light travels,
@@ -87,9 +87,9 @@ def voxel_centres(origin, h, dims):
 def voxelise(scene, n):
     """sigma_t of the scene's one medium at the voxel centres: ((nz, ny, nx) float32, origin, h, dims).
 
-    cloudmeta.inspect.sample_grid samples at grid points origin + i h including both ends; asking it for
+    cloudmeta.api.viewer.sample_grid samples at grid points origin + i h including both ends; asking it for
     the box from the first to the last voxel centre puts its points exactly on the centres."""
-    from cloudmeta.inspect import sample_grid
+    from cloudmeta.api.viewer import sample_grid
 
     if len(scene.media) != 1 or scene.surfaces:
         raise ValueError(f"{scene.path}: media: the Mitsuba peer takes one medium and no surfaces")

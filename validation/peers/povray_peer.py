@@ -173,7 +173,7 @@ def pixel_rays(pov, width, height):
 def compare(pov, exr, ppm, d_ref):
     """Silhouette agreement and the shading differences after matching the falloff."""
     import cloudmeta as cm
-    from cloudmeta.io import read_exr
+    from cloudmeta.api.io import read_exr
 
     ours, _ = read_exr(exr)
     theirs = read_ppm16(ppm)

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 import cloudmeta as cm
-from cloudmeta.cluster import render_frames
+from cloudmeta.api.cluster import render_frames
 from validation.common import ROOT, parse, parser, run_main
 
 

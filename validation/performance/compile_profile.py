@@ -106,7 +106,7 @@ def main(argv=None):
 
     t0 = time.perf_counter()
     import cloudmeta as cm
-    from cloudmeta.io import write_exr
+    from cloudmeta.api.io import write_exr
     t_import = time.perf_counter() - t0
     cpu0 = time.process_time()
     t0 = time.perf_counter()

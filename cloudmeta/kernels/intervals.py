@@ -6,7 +6,7 @@ from numba import njit
 from .bernstein import NCOEF, bernstein_cumulative, bernstein_mean, subdivide
 from .bvh import STACK
 from .config import NJIT, NJIT_INLINE
-from .features import surface_balls
+from .optional import surface_balls
 from .lighting import N_COUNTS
 from .media import alloc_ray_pieces, n_media
 from .records import NodeWork, RayWork

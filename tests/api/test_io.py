@@ -1,4 +1,4 @@
-"""cloudmeta.io: linear OpenEXR out and back, sRGB PNG previews."""
+"""cloudmeta.api.io: linear OpenEXR out and back, sRGB PNG previews."""
 import os
 
 import numpy as np
@@ -8,7 +8,7 @@ from PIL import Image
 
 from cloudmeta.scene.colour import chromaticities
 from cloudmeta.errors import InputError
-from cloudmeta.io import read_exr, write_exr, write_png
+from cloudmeta.api.io import read_exr, write_exr, write_png
 
 
 def image(h=5, w=7, c=4, seed=1):
@@ -81,7 +81,7 @@ def test_05_png_is_srgb_rgb(tmp_path):
 
 
 def test_atomic_output_renames_only_on_success(tmp_path):
-    from cloudmeta.io import atomic_output
+    from cloudmeta.api.io import atomic_output
     target = tmp_path / "out.exr"
     target.write_bytes(b"old")
     try:
@@ -102,7 +102,7 @@ def test_atomic_output_renames_only_on_success(tmp_path):
 
 
 def test_atomic_outputs_renames_all_or_none(tmp_path):
-    from cloudmeta.io import atomic_outputs
+    from cloudmeta.api.io import atomic_outputs
     a, b = tmp_path / "a.exr", tmp_path / "b.png"
     a.write_bytes(b"old")
     with pytest.raises(RuntimeError):
@@ -118,7 +118,7 @@ def test_atomic_outputs_renames_all_or_none(tmp_path):
 
 
 def test_a_failed_rename_puts_back_what_was_renamed(tmp_path, monkeypatch):
-    from cloudmeta import io
+    from cloudmeta.api import io
     a, b = tmp_path / "a.exr", tmp_path / "b.png"
     a.write_bytes(b"old a")
     real = os.replace
@@ -147,7 +147,7 @@ def test_a_failed_rename_puts_back_what_was_renamed(tmp_path, monkeypatch):
 ])
 def test_check_output_path(tmp_path, monkeypatch, name, ext, fragment):
     from cloudmeta.errors import OutputError
-    from cloudmeta.io import check_output_path
+    from cloudmeta.api.io import check_output_path
     monkeypatch.chdir(tmp_path)
     (tmp_path / "sub").mkdir()
     (tmp_path / "in.yaml").write_text("x")
@@ -164,7 +164,7 @@ def test_png_exposure_is_bounded(tmp_path):
 
 
 def test_outputs_get_ordinary_permissions_not_mkstemps(tmp_path):
-    from cloudmeta.io import _UMASK, atomic_output, atomic_outputs
+    from cloudmeta.api.io import _UMASK, atomic_output, atomic_outputs
     with atomic_output(tmp_path / "a.exr") as tmp:
         open(tmp, "wb").close()
     with atomic_outputs([tmp_path / "b.exr", tmp_path / "b.png"]) as tmps:
@@ -188,7 +188,7 @@ def test_a_writer_killed_with_sigkill_leaves_temporaries_that_the_next_write_rem
     import subprocess
     import sys
     code = ("import os, signal, sys\n"
-            "from cloudmeta.io import atomic_outputs\n"
+            "from cloudmeta.api.io import atomic_outputs\n"
             "block = atomic_outputs([sys.argv[1], sys.argv[2]])\n"
             "block.__enter__()\n"
             "os.kill(os.getpid(), signal.SIGKILL)\n")
@@ -206,7 +206,7 @@ def test_a_writer_killed_with_sigkill_leaves_temporaries_that_the_next_write_rem
 def test_only_stale_temporaries_of_cloudmetas_kind_from_this_machine_are_swept(tmp_path):
     import subprocess
     import sys
-    from cloudmeta.io import _HOST, sweep_stale
+    from cloudmeta.api.io import _HOST, sweep_stale
     dead, other = _dead_pid(), "000000" if _HOST != "000000" else "111111"
     stale = [f".a.exr.tmp-{dead}-{_HOST}-abcd1234.exr", f".a.png.tmp-{dead}-{_HOST}-abcd1234.png",
              f".a.exr.tmp-{dead}-{_HOST}-abcd1234.exr.old", f".x.tmp-{dead}-{_HOST}-abcd1234"]
@@ -235,7 +235,7 @@ def test_only_stale_temporaries_of_cloudmetas_kind_from_this_machine_are_swept(t
 
 
 def test_a_temporary_file_is_locked_while_its_writer_works(tmp_path):
-    from cloudmeta.io import _lock_free, atomic_outputs, sweep_stale
+    from cloudmeta.api.io import _lock_free, atomic_outputs, sweep_stale
     with atomic_outputs([tmp_path / "a.exr"]) as (tmp,):
         assert not _lock_free(tmp)
         assert sweep_stale(tmp_path) == []
@@ -259,7 +259,7 @@ def test_write_errors_name_the_users_path_not_the_temporary_file(tmp_path, monke
 
 
 def test_a_failed_encode_names_the_users_path(tmp_path, monkeypatch):
-    from cloudmeta import io
+    from cloudmeta.api import io
 
     def full(image, path, *args):
         raise OSError(f"cannot write {path}: disk full")
@@ -271,6 +271,6 @@ def test_a_failed_encode_names_the_users_path(tmp_path, monkeypatch):
 
 def test_check_output_path_refuses_an_empty_path():
     from cloudmeta.errors import OutputError
-    from cloudmeta.io import check_output_path
+    from cloudmeta.api.io import check_output_path
     with pytest.raises(OutputError, match="^-o: expected a file name, got an empty path$"):
         check_output_path("", ".exr", "-o")

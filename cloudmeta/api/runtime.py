@@ -13,8 +13,8 @@ def compile_notice(note=""):
     """Say so, before a render, when the kernels are not compiled yet (the first run on a machine, or every
     run where they cannot be cached: then a line on stderr says why, once per process)."""
     # imported here, not at the top: numba and the kernel modules cost start-up, and --help needs neither
-    from .kernels.config import CACHE, cache_problem, is_compiled, say_uncached
-    from .kernels.single import render_pixels
+    from ..kernels.config import CACHE, cache_problem, is_compiled, say_uncached
+    from ..kernels.single import render_pixels
     if is_compiled(render_pixels):
         return
     if cache_problem() is None:

@@ -74,7 +74,7 @@ def precompile(n_jobs=2, report=print):
     and its kernels were cached. A failed job reports its last line of error and the others go on (its
     kernels then compile on first use). What the jobs said of the cache (an entry that could not be read and
     was compiled again, a folder that cannot be written) is passed on, each line once."""
-    from .kernels.config import UNCACHED
+    from ..kernels.config import UNCACHED
     said, lock = set(), threading.Lock()
     with tempfile.TemporaryDirectory(prefix="cloudmeta-compile-") as folder:
         todo = jobs(folder)

@@ -9,14 +9,14 @@ import threading
 import time
 from pathlib import Path
 
-from .errors import CloudmetaError, InputError, SceneError
-from .runtime import INTERRUPTED, RENDERS, compile_notice, interruptible
-from .scene.vocabulary import QUALITIES, QUALITY_TARGETS, SHADOW_MAP_RESOLUTION, SHADOW_MODES
+from ..errors import CloudmetaError, InputError, SceneError
+from ..api.runtime import INTERRUPTED, RENDERS, compile_notice, interruptible
+from ..scene.vocabulary import QUALITIES, QUALITY_TARGETS, SHADOW_MAP_RESOLUTION, SHADOW_MODES
 
 
 def _render(args):
-    from .errors import OutputError
-    from .scene.animation import load_animation
+    from ..errors import OutputError
+    from ..scene.animation import load_animation
     for label, path in (("-o", args.output), ("--png", args.png)):
         if path is not None and not path:  # -o '' is no file: refused, not taken for "no -o" (SCENE.exr here)
             raise OutputError(f"{label}: expected a file name, got an empty path")
@@ -29,15 +29,15 @@ def _render(args):
             raise InputError("--denoise: only for a single image, not with --frames, --tiles, --workers, "
                              "--scheduler or an animated scene")
         return _frames(args)  # a sequence, tiles or a cluster (docs/animation.md)
-    from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_outputs
-    from .scene import load_scene
+    from ..api.io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_outputs
+    from ..scene import load_scene
 
     if args.exposure is not None:
         check_exposure(args.exposure, "--exposure")  # nan, inf, 2000: 2 ** exposure overflows
     overrides = {"quality": args.quality, "shadows": args.shadows, "shadow_map": args.shadow_map}
     scene = load_scene(args.scene, width=args.width, height=args.height, spp=args.spp, render=overrides)
     if args.denoise:
-        from .renderer.denoise import require_denoiser
+        from ..renderer.denoise import require_denoiser
         require_denoiser(scene)  # before any work: the mode and the optional extra
     outputs = _outputs(args, scene)
     for label, path, ext in outputs:
@@ -66,7 +66,7 @@ def _render(args):
               + ("" if scattered.predicted is None else
                                            f", measured relative RMSE {scattered.predicted:.1e} on its "
                                            f"{scattered.rays} rays") + " (render.calibrate; docs/error_estimate.md)")
-        from .renderer.pilot import MIN_TRUSTED
+        from ..renderer.calibrate import MIN_TRUSTED
         if scattered.shorter:
             print("cloudmeta: most of the calibration reference's steps took the Kronrod nodes: the level above is on "
                   "the shorter ladder (steps half as thick, half a step coarser otherwise)")
@@ -107,7 +107,7 @@ def _render_image(scene, progress, error=False, denoise=False):
     own (``interruptible``)."""
     import numpy as np
 
-    from .renderer import render_frame
+    from ..renderer import render_frame
     compile_notice()
     start = time.perf_counter()
     result = interruptible(render_frame, scene, progress=progress, error=error, denoise=denoise)
@@ -122,17 +122,17 @@ def _render_image(scene, progress, error=False, denoise=False):
 def _level_words(level):
     """The calibration's level in words: how many steps of renderer.estimate's factors from the ladder's
     settings (renderer.pilot.LADDER)."""
-    from .renderer.pilot import LADDER
+    from ..renderer.calibrate import LADDER
     if level == 0.0:
         return f"quality {LADDER}'s settings"
     return f"{abs(level):.2f} steps {'coarser' if level > 0 else 'finer'} than quality {LADDER}'s settings"
 
 
 def _frames(args):
-    """``cloudmeta render`` for a sequence, tiles or a cluster (cloudmeta.cluster.render_frames)."""
-    from .cluster import Outputs, parse_tiles, render_frames
-    from .io import check_exposure
-    from .scene.animation import parse_frames
+    """``cloudmeta render`` for a sequence, tiles or a cluster (cloudmeta.api.cluster.render_frames)."""
+    from ..api.cluster import Outputs, parse_tiles, render_frames
+    from ..api.io import check_exposure
+    from ..scene.animation import parse_frames
     if args.exposure is not None:
         check_exposure(args.exposure, "--exposure")
     frames = parse_frames(args.frames) if args.frames is not None else None
@@ -163,10 +163,10 @@ def _frames(args):
 
 
 def _inspect(args):
-    from .errors import OutputError
-    from .inspect import inspect_command
-    from .io import same_file
-    from .scene import load_scene
+    from ..errors import OutputError
+    from ..api.viewer import inspect_command
+    from ..api.io import same_file
+    from ..scene import load_scene
     inputs = load_scene(args.scene).inputs
     for label, path in (("--screenshot", args.screenshot), ("--save", args.save)):
         if path and any(same_file(os.path.abspath(path), source) for source in inputs):
@@ -197,7 +197,7 @@ def _positive(text):
 
 
 def build_parser():
-    from . import __version__
+    from .. import __version__
     parser = _Parser(prog="cloudmeta", description="The cloudmeta command: render a scene to OpenEXR (and "
                                                    "PNG), inspect its field in 3D.")
     parser.add_argument("--version", action="version", version=f"cloudmeta {__version__}")
@@ -274,7 +274,7 @@ def _seed(text):
 
 def _generate(args):
     """``cloudmeta generate``: the paths are checked first, then the cloud is built and both files written."""
-    from .generate import check_scene_paths, generate, parse_param, write_scene
+    from ..generate import check_scene_paths, generate, parse_param, write_scene
     params = dict(parse_param(text, "-p") for text in args.param)
     check_scene_paths(args.output, None, args.overwrite)
     parts = [f"cloudmeta generate {args.kind} --balls {args.balls} --seed {args.seed}"]
@@ -297,8 +297,8 @@ def _generate(args):
 
 
 def _compile(args):
-    from .kernels.config import CACHE_FOLDER, cache_problem
-    from .precompile import precompile
+    from ..kernels.config import CACHE_FOLDER, cache_problem
+    from .compile import precompile
     problem = cache_problem()
     if problem is not None:  # the jobs' kernels would be thrown away with their processes
         print(f"cloudmeta: nothing compiled: {problem}; kernels compile in every process that needs them",
@@ -352,6 +352,3 @@ def main(argv=None):
         if handler is not None:
             signal.signal(signal.SIGTERM, handler)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -26,15 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .engine import blob_record
-from .errors import InputError
-from .kernels.density import rho_value
-from .kernels.grid import bin_balls, sample_field
-from .kernels.kinds import DENSITY_MODES
-from .kernels.records import CellGrid
-from .renderer.pack import camera_frame
-from .scene import DirectionalLight, PointLight, Scene, load_scene
-from .scene.blob import Blob
+from .rays import blob_record
+from ..errors import InputError
+from ..kernels.density import rho_value
+from ..kernels.grid import bin_balls, sample_field
+from ..kernels.kinds import DENSITY_MODES
+from ..kernels.records import CellGrid
+from ..renderer.pack import camera_frame
+from ..scene import DirectionalLight, PointLight, Scene, load_scene
+from ..scene.blob import Blob
 
 #: default bounds: the bounding box grown by this fraction of its longest side on every side
 PAD = 0.05

@@ -1,4 +1,4 @@
-"""cloudmeta.inspect and kernels/grid: the culled grid sampler equals cloudmeta.field, the grid's geometry is
+"""cloudmeta.api.viewer and kernels/grid: the culled grid sampler equals cloudmeta.field, the grid's geometry is
 right, sigma_t follows docs/model.md §4, and ``cloudmeta inspect`` writes pictures and grids off screen."""
 import numpy as np
 import pytest
@@ -9,7 +9,7 @@ from matplotlib.image import imread
 import cloudmeta as cm
 from cloudmeta.cli import main
 from cloudmeta.errors import InputError
-from cloudmeta.inspect import _cull_cells, draw_volume, sample_grid
+from cloudmeta.api.viewer import _cull_cells, draw_volume, sample_grid
 from cloudmeta.kernels.grid import bin_balls
 from tests.conftest import random_blob
 
