@@ -20,7 +20,7 @@ from validation.references import suite as S
 
 ROOT = Path(__file__).resolve().parents[2]
 SUITE = ROOT / "scenes" / "suite"
-RESULTS = ROOT / "validation" / "results" / "suite"
+REFERENCES = ROOT / "validation" / "reference_images" / "suite"
 
 
 def test_estimate_leaves_the_image_unchanged_and_is_the_difference_to_a_coarser_render():
@@ -63,12 +63,12 @@ def test_estimated_rel_rmse_is_the_presets_measure():
 
 @pytest.mark.parametrize("name", ["deck_grazing", "cumulus_front", "wisps_front", "deck_point_inside"])
 def test_estimate_brackets_the_true_error_on_suite_scenes(name):
-    """Against the committed converged references (validation/results/suite): the image-level estimate
+    """Against the committed converged references (validation/reference_images/suite): the image-level estimate
     between half and 10x the true relative RMSE (issue #11), at the default preset, both relative to the
     mean scattered radiance (issue #23). deck_point_inside's lamp is a bright spot the pilot's 22 x 16 rays
     missed: over the pilot's mean its estimate was 67x the truth; the calibration's reference measures the mean."""
     from cloudmeta.renderer import render_frame
-    ref = np.load(RESULTS / f"{name}.npy")
+    ref = np.load(REFERENCES / f"{name}.npy")
     s = cm.load_scene(SUITE / f"{name}.yaml")
     result = render_frame(s, progress=False, error=True)
     true = S.rel_rmse_scattered(result.image, ref, s.background)
@@ -156,7 +156,7 @@ def test_error_target_refines_until_the_estimate_meets_it():
     default's) refines the settings; the estimate and the true error both end below it."""
     from dataclasses import replace
     from cloudmeta.renderer import render_frame
-    ref = np.load(RESULTS / "deck_grazing.npy")
+    ref = np.load(REFERENCES / "deck_grazing.npy")
     s = cm.load_scene(SUITE / "deck_grazing.yaml")
     s = replace(s, render=replace(s.render, error=1e-4))
     result = render_frame(s, progress=False, error=True)

@@ -107,7 +107,7 @@ def test_committed_reference_is_there_current_and_finite(path):
 #: the cheapest scenes for the numpy reference (77 or 48 balls; a sun, a lamp inside, a sun with carving)
 QUICK = ("cumulus_front", "cumulus_point_inside", "carved_side")
 #: the numpy reference at rtol 1e-6 is itself good to about 1e-6; at rtol 1e-8 the committed references of
-#: these three scenes agree with it to 1.4e-8 .. 6.5e-8 (validation/results/suite/*.json)
+#: these three scenes agree with it to 1.4e-8 .. 6.5e-8 (validation/reference_images/suite/*.json)
 QUICK_BOUND = 2e-5
 
 

@@ -15,7 +15,7 @@ For every suite scene (64 x 48, spp 1):
    the three density modes, the four phases, directional and point lights, ambient, background); it does
    not support the nishimura and blinn kernels, surfaces or spp > 1, which the suite does not use.
 
-Images are cached as validation/results/suite/NAME.npy (reference) and NAME.tighter.npy (float32, H x W x 4,
+Images are cached as validation/reference_images/suite/NAME.npy (reference) and NAME.tighter.npy (float32, H x W x 4,
 as cm.render returns them), with NAME.json (times, figures, and a fingerprint of the YAML, its balls files
 and the settings) and NAME.numpy.npy (the numpy reference's pixels, (n, 3) float64 with their (row, col) in
 NAME.pixels.npy). A cached scene whose fingerprint still matches is not rendered again; ``--force`` redoes it.

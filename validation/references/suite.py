@@ -26,10 +26,11 @@ from pathlib import Path
 import numpy as np
 
 import cloudmeta as cm
-from validation.common import RESULTS, ROOT, rel_rmse, with_settings
+from validation.common import ROOT, rel_rmse, with_settings
 
 SUITE = ROOT / "scenes" / "suite"
-CACHE = RESULTS / "suite"
+#: the committed converged references, read by the tests (validation/reference_images/suite/)
+CACHE = ROOT / "validation" / "reference_images" / "suite"
 
 #: every axis and its values; each value must be covered by at least two scenes
 AXES = {
