@@ -3,8 +3,8 @@
 For every suite scene (scenes/suite/, 64 x 48, exact shadow rays) and the presets draft, default and fine:
 the image's estimated relative RMSE (``RenderResult.estimated``: the per-pixel estimate's RMSE over the
 pilot's mean scattered radiance) against its true relative RMSE (the RMSE against the scene's converged
-reference, validation/reference_images/suite/, over the reference's mean scattered radiance: the presets' measure,
-issue #23). Issue #11 asks for an estimate at least half the true error and at most 10x it:
+reference, validation/reference_images/suite/, over the reference's mean scattered radiance: the presets' measure).
+The goal is an estimate at least half the true error and at most 10x it:
 the ratio estimate / true is checked against [0.5, 10] on every scene and preset. Also the time of the render
 with the estimate against the time without it (one render each, after a warm-up; noisy on a shared machine).
 
@@ -37,7 +37,7 @@ from validation.common import RESULTS, parse, parser, run_main, write_csv
 from validation.references import suite as S
 
 PRESETS = ("draft", "default", "fine")
-#: issue #11: the estimate at least half the true error and at most 10x it
+#: the goal: the estimate at least half the true error and at most 10x it
 LOW, HIGH = 0.5, 10.0
 
 

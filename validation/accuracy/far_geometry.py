@@ -1,4 +1,4 @@
-"""Far-away geometry (issue #27): how much a stray ball far from a cloud changes the cloud's pixels.
+"""Far-away geometry: how much a stray ball far from a cloud changes the cloud's pixels.
 
 Renders the shipped cumulus at ``--size`` pixels, with and without one extra ball of radius 1 placed
 ``distance`` away (out of view, off every shadow ray), at the given presets, and prints the largest pixel

@@ -1,4 +1,4 @@
-"""Time against error for every way cloudmeta renders multiply scattered light (issue #25 item 4): single
+"""Time against error for every way cloudmeta renders multiply scattered light: single
 scattering, the approximate mode (octaves and grid), unbiased multiple scattering and the same denoised, on
 validation.accuracy.approximate's six report scenes, against their converged references.
 

@@ -5,7 +5,7 @@ For each kernel (wyvill6, murakami4, nishimura, blinn), density mode (field, exc
 (spheres, rotated ellipsoids), random blobs of 1, 3, 10, 100 and 2,000 balls (two of each size but 1: all
 weights positive, and some negative) are crossed by random rays from outside (half aimed at a ball);
 cm.optical_depth is compared with the reference of validation/accuracy/optical_depth_vs_quadrature.py
-(scipy.integrate.quad of sigma_t on the plain numpy field of MODEL.md §1, between break points: chord ends,
+(scipy.integrate.quad of sigma_t on the plain numpy field of docs/model.md §1, between break points: chord ends,
 the engine's roots and independently found roots), whose functions are imported here. On a big blob the
 reference only sees the balls the ray meets (the others are 0 on the ray), which keeps quad affordable.
 
@@ -45,7 +45,7 @@ BLOBBINESS = 4.0
 
 
 class AnyKernelBlob(PlainBlob):
-    """PlainBlob with every kernel of MODEL.md §1 (the imported reference knows the two polynomial ones)."""
+    """PlainBlob with every kernel of docs/model.md §1 (the imported reference knows the two polynomial ones)."""
 
     def k(self, u):
         if self.kernel in ("wyvill6", "murakami4"):
@@ -249,7 +249,7 @@ def main(argv=None, quick=False):
     by_size = {n: summarise([r for r in rows if r["n_balls"] == n]) for n in sizes}
     elapsed = time.perf_counter() - start
 
-    print("Optical depth: cm.optical_depth against scipy quad of the plain field (MODEL.md §1, §4)")
+    print("Optical depth: cm.optical_depth against scipy quad of the plain field (docs/model.md §1, §4)")
     print(f"scenes of {', '.join(map(str, sizes))} balls per case (positive weights; and with negative ones); "
           f"{rays} rays per scene ({max(4, rays // 2)} on scenes of 1,000+)\n")
     head = (f"{'kernel':10s} {'density':8s} {'shape':10s} {'rays':>5s} {'hit':>4s} {'max rel':>9s} {'median rel':>10s} "

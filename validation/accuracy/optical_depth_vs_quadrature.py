@@ -2,8 +2,8 @@
 
 Random blobs (5-40 balls in a box; spheres or rotated ellipsoids; positive or some negative weights;
 wyvill6 or murakami4) and random rays from outside aimed at random points of the box. For every ray the
-reference is scipy.integrate.quad of sigma_t(t) = scale * rho(F(x(t))) (MODEL.md §4), where F is evaluated
-here by plain numpy from MODEL.md §1 (not cm.field; rotations from scipy's Rotation, not the engine's). The
+reference is scipy.integrate.quad of sigma_t(t) = scale * rho(F(x(t))) (docs/model.md §4), where F is evaluated
+here by plain numpy from docs/model.md §1 (not cm.field; rotations from scipy's Rotation, not the engine's). The
 integral is taken piece by piece between break points: every chord end (plain sphere/ellipsoid formula),
 every root reported by cm.roots, and every root found here independently (power-form polynomial of F on
 each chord interval, refined by brentq on the plain field), so that the integrand is a smooth polynomial
@@ -11,7 +11,7 @@ on every piece.
 
     python -m validation.accuracy.optical_depth_vs_quadrature [--rays 3000] [--seed 1] [--quick]
 
-Requirement (the issue): max relative error below 1e-9 on every ray; rays whose reference is 0 must give
+Requirement: max relative error below 1e-9 on every ray; rays whose reference is 0 must give
 tau = 0 to 1e-12 absolute. Writes validation/results/optical_depth_vs_quadrature.csv (per case) and, with
 --per-ray-csv, optical_depth_vs_quadrature_rays.csv (every ray, to reproduce any of them).
 """
@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 
 import cloudmeta as cm
 
-REL_LIMIT = 1e-9      # the issue's requirement on every ray
+REL_LIMIT = 1e-9      # the requirement on every ray
 ZERO_ABS_LIMIT = 1e-12  # rays whose reference is 0
 TINY = 1e-300
 SLIVER = 1e-10          # pieces narrower than this (in t) are integrated by the midpoint rule
@@ -43,12 +43,12 @@ SHAPES = ("spheres", "ellipsoids")
 WEIGHTS = ("positive", "negative")
 DENSITIES = ("field", "excess", "uniform")
 
-#: k(u) in power form, for u < 1 (MODEL.md §1)
+#: k(u) in power form, for u < 1 (docs/model.md §1)
 K_POWER = {"wyvill6": Polynomial([1.0, -22.0 / 9.0, 17.0 / 9.0, -4.0 / 9.0]),
            "murakami4": Polynomial([1.0, -2.0, 1.0])}
 
 
-# --- the plain model (MODEL.md §1), independent of the engine -----------------------------------------------
+# --- the plain model (docs/model.md §1), independent of the engine -----------------------------------------------
 
 class PlainBlob:
     """The same balls as a cm.Blob, with u_i(x) = |S^-1 Q^T (x - c)|^2 computed here."""
@@ -277,7 +277,7 @@ def main(argv=None, quick=False):
     overall = summarise(rows)
     elapsed = time.perf_counter() - t_start
 
-    print("Optical depth: cm.optical_depth vs scipy quad of the plain field (MODEL.md §4)")
+    print("Optical depth: cm.optical_depth vs scipy quad of the plain field (docs/model.md §4)")
     print(cache_note())
     print(f"{len(rows)} rays, seed {args.seed}; requirement: relative error < {REL_LIMIT:g} on every ray, "
           f"|tau| <= {ZERO_ABS_LIMIT:g} where the reference is 0\n")

@@ -1,6 +1,6 @@
-"""The worked numbers of Nishita & Nakamae, recomputed with cloudmeta's kernels (MODEL.md §1-3).
+"""The worked numbers of Nishita & Nakamae, recomputed with cloudmeta's kernels (docs/model.md §1-3).
 
-Every row is an expected value (from the paper, or from a formula of MODEL.md) against what the engine's
+Every row is an expected value (from the paper, or from a formula of docs/model.md) against what the engine's
 kernels give. The expected values are derived here independently: control values by interpolating the
 kernel k(u(s)) itself at Bernstein nodes, roots by brentq on the plain field.
 
@@ -25,7 +25,7 @@ from cloudmeta.kernels.clipping import STACK_DEPTH, clip_roots
 from cloudmeta.kernels.metaball import MURAKAMI4, WYVILL6, control_values
 
 
-# --- independent helpers (plain numpy, from the formulas of MODEL.md) -------------------------------------
+# --- independent helpers (plain numpy, from the formulas of docs/model.md) -------------------------------------
 
 def k_wyvill6(u):
     u = np.asarray(u, dtype=np.float64)
@@ -107,7 +107,7 @@ def wyvill6_control_values(ch):
     for a in (1.0, 0.5):
         got = engine_control_values(WYVILL6, a)
         formula = np.array([0, 0, 16 / 27 * a * a, 8 * a * a * (8 * a + 5) / 45, 16 / 27 * a * a, 0, 0])
-        ch.vector(f"wyvill6 a={a:g} d (MODEL.md formula)", formula, got, 1e-15)
+        ch.vector(f"wyvill6 a={a:g} d (docs/model.md formula)", formula, got, 1e-15)
         # the same curve, independently: interpolate k(u(s)), u = 1 - 4 a s (1 - s), at 7 nodes
         interp = interpolate_bernstein(lambda s: k_wyvill6(1 - 4 * a * s * (1 - s)), 6)
         ch.vector(f"wyvill6 a={a:g} d (interpolated k)", interp, got, 1e-12)
@@ -253,7 +253,7 @@ def main(argv=None, quick=False):
     murakami4_control_values(ch)
     fig5(ch, out)
     half_radius(ch, out)
-    print("Paper examples (Nishita & Nakamae; MODEL.md §1-3)\n")
+    print("Paper examples (Nishita & Nakamae; docs/model.md §1-3)\n")
     print(cache_note() + "\n")
     print_table(ch.rows)
     print("\nFig. 5 composite on [4, 5] (exact values):")

@@ -9,7 +9,7 @@ paper's tolerance 0.001 and at 1e-9.
 
     python -m validation.accuracy.root_finding_table [--reps 100000] [--runs 7] [--quick]
 
-Requirement (the issue), measured in one run: clipping >= 10x faster than Laguerre at T = 0.5 and >= 30x at
+Requirement, measured in one run: clipping >= 10x faster than Laguerre at T = 0.5 and >= 30x at
 T = -0.2 and T = 1.2. Writes validation/results/root_finding_table.csv.
 """
 from __future__ import annotations

@@ -1,9 +1,9 @@
-"""The renderer's pixel radiance against an independent, slow reference of single scattering (MODEL.md §5, §8).
+"""The renderer's pixel radiance against an independent, slow reference of single scattering (docs/model.md §5, §8).
 
 The reference is written here in plain numpy/scipy and shares nothing with the renderer but the scene's
 colours (the loader's colour conversion is not under test here): the scene's geometry is read from the
-YAML (and CSV) itself, rotations come from scipy, camera rays are built from MODEL.md §8, the field from
-MODEL.md §1 (validation/references/plain.py: power form on each chord interval, companion-matrix roots, exact
+YAML (and CSV) itself, rotations come from scipy, camera rays are built from docs/model.md §8, the field from
+docs/model.md §1 (validation/references/plain.py: power form on each chord interval, companion-matrix roots, exact
 antiderivatives). For every pixel:
 
     L = L_bg T(0, inf) + integral_0^inf T(0, t) sum_media sigma_s(t) [sum_lights p(l . d) E_l(t) T_l(t) + L_amb] dt
@@ -144,7 +144,7 @@ def plain_media(raw, folder):
 
 
 def phase_value(phase, cos):
-    """MODEL.md §4, normalised over the sphere."""
+    """docs/model.md §4, normalised over the sphere."""
     kind = phase[0]
     hg = lambda g: (1 - g * g) / (4 * np.pi * (1 + g * g - 2 * g * cos) ** 1.5)  # noqa: E731
     if kind == "hg":
@@ -157,7 +157,7 @@ def phase_value(phase, cos):
 
 
 def camera_rays(raw_cam, width, height, pixels):
-    """MODEL.md §8: pixel centres, row 0 at the top, vertical fov."""
+    """docs/model.md §8: pixel centres, row 0 at the top, vertical fov."""
     pos = np.array(raw_cam["position"], float)
     fwd = np.array(raw_cam["look_at"], float) - pos
     fwd /= np.linalg.norm(fwd)
@@ -431,7 +431,7 @@ def main(argv=None, quick=False):
             rows += r
             pix_rows += p
     elapsed = time.perf_counter() - start
-    print("Single scattering: cm.render against an independent numpy reference (MODEL.md §5, §8)")
+    print("Single scattering: cm.render against an independent numpy reference (docs/model.md §5, §8)")
     print(f"reference: adaptive Gauss-Kronrod 7/15, rtol {rtol:g}, exact view and shadow optical depths\n")
     head = (f"{'scene':18s} {'size':>6s} {'px':>4s} {'setting':>9s} {'rel RMSE':>9s} {'bound':>6s} "
             f"{'max px rel':>10s} {'alpha err':>9s} {'render s':>8s} {'ref s':>6s} {'ref evals':>9s} "

@@ -11,7 +11,7 @@ any output is not finite, or if its error exceeds the criterion of its category.
 - ``plain``: validation/references/plain.py (numpy power form, companion-matrix roots; ~1e-13 relative), used where
   an mpmath reference would be too slow (many balls).
 
-Criteria (MODEL.md §3 and docs/model_notes.md), with tol_t the engine's root tolerance (1e-9 x the blob's
+Criteria (docs/model.md §3 and docs/model_notes.md), with tol_t the engine's root tolerance (1e-9 x the blob's
 bounding-box diagonal, or as passed), n = 1 + the number of roots (engine or reference, the larger), and
 sigma = scale x max(T, 1) the density at a crossing (an upper bound: field mode has T there, uniform 1):
 
@@ -134,7 +134,7 @@ def exact_ray(blob, o, d, mode="field", scale=1.0, t_max=None):
                 was_inside = False
                 continue
             F = [mp.mpf(0)] * 7
-            for (_, _, A, b, C, w) in act:  # v = 1 - u(ta + x), k as a polynomial in v (MODEL.md §1)
+            for (_, _, A, b, C, w) in act:  # v = 1 - u(ta + x), k as a polynomial in v (docs/model.md §1)
                 v = [1 - (A * ta * ta + 2 * b * ta + C), -(2 * A * ta + 2 * b), -A]
                 vp = [mp.mpf(1)]
                 for coef in _KV[blob.kernel]:
@@ -320,7 +320,7 @@ def tangent_single(cs, rng, quick):
 
 
 def _field_terms(blob, x):
-    """F, sum |q k|, gradient and Hessian at x (float, MODEL.md §1; wyvill6 and murakami4)."""
+    """F, sum |q k|, gradient and Hessian at x (float, docs/model.md §1; wyvill6 and murakami4)."""
     F, S = 0.0, 0.0
     grad, hess = np.zeros(3), np.zeros((3, 3))
     for c, M, q in zip(blob.centers, blob.frames, blob.weights):

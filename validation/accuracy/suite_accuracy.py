@@ -1,4 +1,4 @@
-"""The true error of every quality preset on the accuracy suite (scenes/suite/, issue #11), and its time.
+"""The true error of every quality preset on the accuracy suite (scenes/suite/), and its time.
 
 Renders every suite scene (64 x 48, spp 1) at draft, default and fine with exact shadow rays, and at
 default and draft with ``shadows: map`` (384 texels, the renderer's default), and measures against the
@@ -10,7 +10,7 @@ script first, or this one computes the missing references itself):
 over the whole image (validation/common.py's ``rel_rmse``); the same relative to the scattered light
 only, sqrt(mean (L - L_ref)^2) / sqrt(mean S_ref^2) with S_ref = L_ref - L_bg T_ref (a bright sky covering
 much of the frame makes the first measure up to 17x smaller on this suite); and the worst pixel's relative error,
-max over pixels of max_c |L - L_ref| / max_c L_ref. Each setting is checked against its issue #11 target:
+max over pixels of max_c |L - L_ref| / max_c L_ref. Each setting is checked against its preset's target:
 draft 3e-3, default 1e-3, fine 3e-4 (a map row against the target of its quality). "floor" is the
 reference's own error (against the tighter setting): a figure is meaningful only well above it.
 
@@ -179,12 +179,12 @@ def main(argv=None, quick=False):
                                           for r in rows[-len(args.settings):]), flush=True)
     elapsed = time.perf_counter() - start
     print(f"\nAccuracy suite: RMSE against the converged reference over its mean scattered radiance (the presets' "
-          f"measure, issue #23), and median time per render "
+          f"measure), and median time per render "
           f"(64 x 48, spp 1; '!' misses the target: draft {S.TARGETS['draft']:g}, default "
           f"{S.TARGETS['default']:g}, fine {S.TARGETS['fine']:g}; map rows: the target of their quality)\n")
     print(table(rows, "rel_rmse_scattered", "meets_scattered"))
-    print("\nThe same relative to the whole image (sqrt(mean L_ref^2): a bright sky dilutes the error; issue #11's "
-          "measure, for comparison):\n")
+    print("\nThe same relative to the whole image (sqrt(mean L_ref^2): a bright sky dilutes the error; "
+          "the older measure, for comparison):\n")
     print(table(rows))
     print()
     print(worst_table(rows))

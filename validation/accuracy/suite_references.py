@@ -1,4 +1,4 @@
-"""Converged reference images of the accuracy suite (scenes/suite/, issue #11), cached and cross-checked.
+"""Converged reference images of the accuracy suite (scenes/suite/), cached and cross-checked.
 
 For every suite scene (64 x 48, spp 1):
 
@@ -19,7 +19,7 @@ Images are cached as validation/reference_images/suite/NAME.npy (reference) and 
 as cm.render returns them), with NAME.json (times, figures, and a fingerprint of the YAML, its balls files
 and the settings) and NAME.numpy.npy (the numpy reference's pixels, (n, 3) float64 with their (row, col) in
 NAME.pixels.npy). A cached scene whose fingerprint still matches is not rendered again; ``--force`` redoes it.
-The whole cache is about 1.5 MB and is committed, so that tests and later sessions reuse it.
+The whole cache is about 1.5 MB and is committed, so that the tests and later runs reuse it.
 
     python -m validation.accuracy.suite_references [--scenes NAME ...] [--force] [--rtol 1e-8] [--no-crosscheck]
 

@@ -1,20 +1,20 @@
-"""Multiple scattering side by side with Mitsuba 3 (issue #13): mean agreement, Mitsuba's voxel bias, noise
+"""Multiple scattering side by side with Mitsuba 3: mean agreement, Mitsuba's voxel bias, noise
 at equal wall time.
 
 Mitsuba 3.8.0 (``pip install mitsuba==3.8.0``, variant ``llvm_ad_rgb``; 3.9 aborts on Debian's LLVM) renders
 the same scene with ``volpath`` (high ``max_depth``) through a ``heterogeneous`` medium whose ``sigma_t`` is a
-``gridvolume``: cloudmeta's own sigma_t = scale * rho(F(x)) (MODEL.md §4) sampled at the voxel centres
+``gridvolume``: cloudmeta's own sigma_t = scale * rho(F(x)) (docs/model.md §4) sampled at the voxel centres
 (cloudmeta.api.viewer.sample_grid), trilinearly interpolated by Mitsuba (drjit textures are cell-centred:
 voxel i covers [i, i + 1] h and holds the value at its centre). The grid has N voxels along the bounding
 box's longest side and cubic voxels (so "256^3" is 256 x 154 x 158 on the cumulus). Everything else is the
 scene's: albedo, HG phase, the directional light (Mitsuba's ``direction`` is the way the light travels,
 -l), the uniform background as a ``constant`` environment (cloudmeta's multiple mode lights the medium
-with it at every order, README "Multiple scattering"), the pinhole camera (MODEL.md §8: vertical fov, so
+with it at every order, README "Multiple scattering"), the pinhole camera (docs/model.md §8: vertical fov, so
 ``fov_axis: y``), the resolution, an ``hdrfilm`` in linear RGB with a ``box`` filter. The colours are the
 scene's linear BT.709 RGB as cloudmeta computes them (the light's blackbody through colour-science): the
 rgb variant uses them as they are, so both images are compared in linear RGB before any tone mapping.
 cloudmeta renders with ``image.spp`` = ``--cm-spp`` stratified jittered rays per pixel (its box filter,
-MODEL.md §8; its deterministic first order has only these rays, so at few rays their jitter is a noise
+docs/model.md §8; its deterministic first order has only these rays, so at few rays their jitter is a noise
 floor that more paths do not lower), ``max_order`` = ``--max-order``; ``ambient`` is dropped (refused in
 multiple mode).
 
@@ -29,8 +29,8 @@ multiple mode).
    runs alternated (cloudmeta seed 0, Mitsuba seed 0, cloudmeta seed 1, ...); noise = the RMS over pixels
    of the seeds' standard deviation (for two seeds, the RMSE of their difference / sqrt 2), relative =
    noise / mean pixel value of the converged image;
-   noise scaled to equal time with noise^2 x time = const, by wall and by CPU time. Requirement (issue
-   #13): cloudmeta's noise at least 3x lower than Mitsuba's at equal time, or its equal-noise time at
+   noise scaled to equal time with noise^2 x time = const, by wall and by CPU time. Requirement:
+   cloudmeta's noise at least 3x lower than Mitsuba's at equal time, or its equal-noise time at
    least 10x shorter. Results and discussion: docs/multiple_scattering.md.
 
 Both renderers run on --threads threads (numba's thread count; drjit's ``set_thread_count``). Mitsuba's
@@ -108,7 +108,7 @@ def voxelise(scene, n):
 
 def mitsuba_light_direction(l):
     """Mitsuba's directional emitter takes the direction the light travels; cloudmeta's ``direction`` is
-    the unit vector towards the light (MODEL.md §5)."""
+    the unit vector towards the light (docs/model.md §5)."""
     return [-float(v) for v in l]
 
 

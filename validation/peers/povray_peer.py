@@ -17,7 +17,7 @@ Matching the two: POV-Ray's ``angle 50`` is the horizontal field of view and clo
 vertical one, fov = 2 atan(tan(25 deg) * 384 / 512); ``right -x*4/3`` with ``sky z`` makes POV-Ray's
 camera right-handed, like cloudmeta's. POV-Ray shades a surface as pigment * (0.1 ambient + diffuse * n.l)
 with no distance falloff and writes linear values (these files set no ``assumed_gamma``); cloudmeta as
-colour / pi * n.l * I / d^2 + colour * ambient (MODEL.md §6). The cloudmeta scene takes ambient 0.1 and
+colour / pi * n.l * I / d^2 + colour * ambient (docs/model.md §6). The cloudmeta scene takes ambient 0.1 and
 I = diffuse * pi * d_ref^2, d_ref the light's distance from the centroid of the balls; for the shading
 comparison every hit pixel's direct part is multiplied by (d / d_ref)^2, d its hit point's distance from
 the light (the hit points from ``cloudmeta.first_hit`` on the renderer's pixel-centre rays).
@@ -155,7 +155,7 @@ def read_ppm16(path):
 
 
 def pixel_rays(pov, width, height):
-    """Origins and unit directions of cloudmeta's pixel-centre camera rays (MODEL.md §8), row 0 on top."""
+    """Origins and unit directions of cloudmeta's pixel-centre camera rays (docs/model.md §8), row 0 on top."""
     position, look_at = pov["location"], pov["look_at"]
     fwd = (look_at - position) / np.linalg.norm(look_at - position)
     right = np.cross(fwd, [0.0, 0.0, 1.0])
@@ -243,7 +243,7 @@ def main(argv=None):
                   f"99th percentile {cmp['p99']:.2e}, mean {cmp['mean']:.2e} (linear RGB; 16-bit steps: 1.5e-5)",
                   flush=True)
             results[name] = dict(times=times, ratio=ratio, **cmp)
-    print("ratio = cloudmeta median / POV-Ray median (issue #14 asks for at most 0.5 on b890 and b1630); "
+    print("ratio = cloudmeta median / POV-Ray median (the goal is at most 0.5 on b890 and b1630); "
           "timings are wall times on a machine that may be shared")
     return results
 

@@ -1,7 +1,7 @@
 """Speed benchmark: start-up, compile times, BVH build, rays per second, and render time and error.
 
 Prints, in one run:
-- start-up (issue #14): the whole process ``python -m cloudmeta.cli render scenes/cumulus.yaml --width 4
+- start-up: the whole process ``python -m cloudmeta.cli render scenes/cumulus.yaml --width 4
   --height 3`` with a warm kernel cache, median and spread of ``--repeats`` runs (with ``--against DIR``
   alternating with the same command in another checkout DIR, e.g. the version before a change), and the
   wall time of ``python -c "import cloudmeta"`` next to that of ``python -c pass``;
@@ -21,8 +21,8 @@ Prints, in one run:
   N and the time measures the cost of culling, not of deeper clouds.
 
     python -m validation.performance.bench [--size 512] [--scale-size 256] [--quick] [--repeats 7] [--cold] [--peer]
-    python -m validation.performance.bench --startup [--against /tmp/old-checkout] [--cold] [--peer]  # #14's only
-    python -m validation.performance.bench --issue11 [--repeats 5]  # #11's speed figures only
+    python -m validation.performance.bench --startup [--against /tmp/old-checkout] [--cold] [--peer]  # start-up only
+    python -m validation.performance.bench --lit [--repeats 5]  # lit against lightless only
 
 Writes validation/results/bench.csv.
 """
@@ -104,8 +104,8 @@ def cold_compile():
     return time.perf_counter() - start, out.stdout
 
 
-def issue14(report, repeats, against, cold, peer):
-    """The figures of issue #14: start-up, import time, and (opt-in) cold compile and the POV-Ray peer."""
+def startup_figures(report, repeats, against, cold, peer):
+    """Start-up, import time, and (opt-in) cold compile and the POV-Ray peer."""
     times = startup(repeats, against)
     for (label, what), values in times.items():
         med, lo, hi = median_spread(values)
@@ -176,8 +176,8 @@ def rays_per_second(n_rays):
     return camera, shadow
 
 
-def issue11(report, repeats, size=512):
-    """Issue #11's speed figures: the cumulus front-lit (scenes/cumulus.yaml) and back-lit
+def lit_figures(report, repeats, size=512):
+    """Lit against lightless: the cumulus front-lit (scenes/cumulus.yaml) and back-lit
     (scenes/cumulus_backlit.yaml) at size^2, ``default``, exact shadows, each against the same render with
     its lights removed (the view rays alone), alternating lit and lightless; and the 1,200-ball bank
     (scenes/dense_1000.yaml). Render time inside one process (kernels loaded outside the clock); median and
@@ -199,7 +199,7 @@ def issue11(report, repeats, size=512):
         report(f"  spread (min-max) of {repeats}: {min(t_lit):.2f}-{max(t_lit):.2f} s", max(t_lit) - min(t_lit), "s")
         report(f"{label} {size}^2 without lights: render time, median", med_dark, "s")
         report(f"  spread (min-max) of {repeats}: {min(t_dark):.2f}-{max(t_dark):.2f} s", max(t_dark) - min(t_dark), "s")
-        report(f"{label}: lit / lightless (issue #11: at most 3x)", med_lit / med_dark, "x")
+        report(f"{label}: lit / lightless (goal: at most 3x)", med_lit / med_dark, "x")
 
 
 def main(argv=None, quick=False):
@@ -210,8 +210,8 @@ def main(argv=None, quick=False):
     ap.add_argument("--against", help="another checkout: its start-up alternates with this one's")
     ap.add_argument("--cold", action="store_true", help="also the first render from an empty cache (minutes)")
     ap.add_argument("--peer", action="store_true", help="also the POV-Ray comparison (needs povray)")
-    ap.add_argument("--startup", action="store_true", help="only issue #14's figures")
-    ap.add_argument("--issue11", action="store_true", help="only issue #11's speed figures (lit against lightless)")
+    ap.add_argument("--startup", action="store_true", help="only the start-up figures")
+    ap.add_argument("--lit", action="store_true", help="only the lit against lightless speed figures")
     args, quick = parse(ap, argv, quick)
     size, scale_size = (32, 24) if quick else (args.size, args.scale_size)
     counts = (1000, 10000) if quick else (1000, 10000, 100000)
@@ -221,10 +221,10 @@ def main(argv=None, quick=False):
         rows.append(dict(what=what, value=value, unit=unit))
         print(f"{what:62s} {value:12.4g} {unit}", flush=True)
 
-    if args.issue11:
-        issue11(report, 3 if quick else min(args.repeats, 5), size)
+    if args.lit:
+        lit_figures(report, 3 if quick else min(args.repeats, 5), size)
         return dict(rows=rows, passed=True)
-    issue14(report, 3 if quick else args.repeats, args.against, args.cold, args.peer)
+    startup_figures(report, 3 if quick else args.repeats, args.against, args.cold, args.peer)
     if args.startup:
         return dict(rows=rows, passed=True)
 

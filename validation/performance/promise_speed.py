@@ -1,4 +1,4 @@
-"""Issue #23's speed figures: two checkouts alternating on the same renders, and each one's true error.
+"""What the presets' promise costs: two checkouts alternating on the same renders, and each one's true error.
 
 For each case (scenes/cumulus.yaml front-lit, scenes/cumulus_backlit.yaml back-lit, scenes/dense_1000.yaml
 the 1,200-ball bank; each lit as shipped, and "lightless": the same scene with its lights removed, ambient

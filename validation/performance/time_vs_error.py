@@ -3,7 +3,7 @@
 For the 77-ball cumulus (scenes/cumulus.yaml) and a 1,200-ball stratocumulus bank (scenes/dense_1000.yaml,
 made by scenes/make_dense.py), renders each setting and measures its wall time and its relative RMSE
 against the ``reference`` setting of the same image, relative to the scattered light (the presets' measure,
-issue #23, docs/error_estimate.md):
+docs/error_estimate.md):
 
     rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / mean over pixels and RGB of S_ref
 

@@ -1,10 +1,10 @@
-"""A plain numpy model of metaball media (MODEL.md §1-§4), written for validation only.
+"""A plain numpy model of metaball media (docs/model.md §1-§4), written for validation only.
 
 It shares no code with the engine (no Bernstein form, no de Casteljau, no Bézier clipping, no numba): on a
 ray, between consecutive chord ends, the field of the balls on the ray is a polynomial in power form of a
 local variable s in [0, 1]. Each ball contributes q k(u(s)) with v = 1 - u(s) = a - A (x0 + s w)^2 (a = 1 -
 min u on the line, A = |d'|^2, x0 = distance of the interval's start from the closest point): wyvill6 is
-k = (1 - u)^2 (1 - 4u/9) = 5/9 v^2 + 4/9 v^3 and murakami4 is k = v^2 (MODEL.md §1). The roots of F - T on
+k = (1 - u)^2 (1 - 4u/9) = 5/9 v^2 + 4/9 v^3 and murakami4 is k = v^2 (docs/model.md §1). The roots of F - T on
 an interval are the real eigenvalues in [0, 1] of the companion matrix (numpy, batched over every interval
 of every ray at once), polished by Newton on the power form; an interval is skipped only when a rigorous
 bound (samples and the derivative's bound) shows F - T has no zero on it. Inside pieces are the parts of
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-#: k(v), v = 1 - u, in powers of v (MODEL.md §1: wyvill6 = (1-u)^2 (1 - 4u/9), murakami4 = (1-u)^2)
+#: k(v), v = 1 - u, in powers of v (docs/model.md §1: wyvill6 = (1-u)^2 (1 - 4u/9), murakami4 = (1-u)^2)
 K_OF_V = {"wyvill6": np.array([0.0, 0.0, 5.0 / 9.0, 4.0 / 9.0]), "murakami4": np.array([0.0, 0.0, 1.0])}
 #: degree in s of the field on an interval
 DEGREE = {"wyvill6": 6, "murakami4": 4}
@@ -32,7 +32,7 @@ N_SAMPLES = 17
 
 
 def frames_of(radii3, angles_deg):
-    """S^-1 Q^T per ball, Q = Rz(az) Ry(ay) Rx(ax) (MODEL.md §9) from scipy's extrinsic 'xyz' Euler angles."""
+    """S^-1 Q^T per ball, Q = Rz(az) Ry(ay) Rx(ax) (docs/model.md §9) from scipy's extrinsic 'xyz' Euler angles."""
     radii3 = np.asarray(radii3, dtype=np.float64)
     n = len(radii3)
     q = (np.broadcast_to(np.eye(3), (n, 3, 3)) if angles_deg is None
@@ -42,7 +42,7 @@ def frames_of(radii3, angles_deg):
 
 @dataclass
 class Medium:
-    """One blob with its density (MODEL.md §4); albedo and phase are carried for the radiance reference."""
+    """One blob with its density (docs/model.md §4); albedo and phase are carried for the radiance reference."""
     centers: np.ndarray          # (N, 3)
     frames: np.ndarray           # (N, 3, 3) = S^-1 Q^T
     weights: np.ndarray          # (N,)
@@ -62,7 +62,7 @@ class Medium:
         return cls(centers, frames_of(radii3, angles), w, **kw)
 
     def field(self, points):
-        """F at (P, 3) points, straight from MODEL.md §1."""
+        """F at (P, 3) points, straight from docs/model.md §1."""
         p = np.einsum("nij,pnj->pni", self.frames, np.asarray(points, np.float64)[:, None, :] - self.centers[None])
         u = np.einsum("pni,pni->pn", p, p)
         v = np.where(u < 1.0, 1.0 - u, 0.0)

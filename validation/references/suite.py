@@ -1,4 +1,4 @@
-"""The accuracy scene suite of issue #11 (scenes/suite/): the scenes, their axes, the settings and the cache.
+"""The accuracy scene suite (scenes/suite/): the scenes, their axes, the settings and the cache.
 
 Shared by validation/accuracy/suite_references.py (converged references, cached),
 validation/accuracy/suite_accuracy.py (the presets' true error), validation/accuracy/error_estimate.py and
@@ -12,7 +12,7 @@ Error measure (validation/common.py's ``rel_rmse``, over the RGB of the whole im
     rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / sqrt(mean over pixels and RGB of L_ref^2)
 
 the same relative to the scattered light alone (``rel_rmse_scattered``: over the mean scattered radiance,
-the presets' measure since issue #23, so that a bright sky does not dilute the error), and the worst
+the presets' measure, so that a bright sky does not dilute the error), and the worst
 pixel's relative error,
 max over pixels of max_c |L - L_ref| / max_c L_ref (the largest channel of the reference pixel: dark
 pixels are not divided by their own small channels).
@@ -40,7 +40,7 @@ AXES = {
     "phase": ("hg", "double_hg", "rayleigh", "isotropic"),
     "ambient": ("yes", "no"),
 }
-#: issue #11's image-level targets of relative RMSE against the converged image
+#: the presets' image-level targets of relative RMSE against the converged image
 TARGETS = {"draft": 3e-3, "default": 1e-3, "fine": 3e-4}
 #: the converged reference: the renderer's tightest preset
 REFERENCE = dict(quality="reference")
@@ -91,7 +91,7 @@ def scattered(ref, background):
 
 
 def rel_rmse_scattered(img, ref, background):
-    """The presets' measure (issue #23, docs/error_estimate.md): sqrt(mean over pixels and RGB of
+    """The presets' measure (docs/error_estimate.md): sqrt(mean over pixels and RGB of
     (L - L_ref)^2) / mean over pixels and RGB of S_ref. It does not shrink as the sky gets brighter or
     covers more of the frame."""
     return rel_rmse(img, ref, norm=float(scattered(ref, background).mean()))
