@@ -9,8 +9,11 @@ The public API:
 
 The names are imported on first use (PEP 562): a process loads only the modules its work needs (the
 scene loader, the EXR writer and colour-science, the vectorised engine, each when first asked for).
-``render`` alone is imported here (cloudmeta.renderer): what every render needs anyway (numba and the
-kernels' dispatchers; no compiled code is loaded until the first call).
+``render`` is imported here (cloudmeta.renderer): what every render needs anyway (numba and the
+kernels' dispatchers; no compiled code is loaded until the first call). ``generate`` and ``write_scene``
+are imported here too (numpy only, light): ``cloudmeta.generate`` names both a function and a package, and
+importing the package sets this module's attribute to the package, so the function is bound here after it,
+once, and ``cloudmeta.generate(...)`` is always the function.
 
 The package stands on three floors that import only downwards: ``scene`` (YAML -> Scene), ``renderer``
 (Scene -> image) and ``kernels`` (numba), with ``errors`` below them all; the modules here (the API, the
@@ -18,6 +21,7 @@ command line, clusters, io, inspection, the ray engine) stand on top.
 """
 import importlib
 
+from .generate import generate, write_scene
 from .renderer import render
 
 #: public name -> the submodule that defines it
@@ -29,7 +33,6 @@ _EXPORTS = {
     "read_exr": "api.io", "write_exr": "api.io", "write_png": "api.io",
     "load_scene": "scene", "render_frame": "renderer", "RenderResult": "renderer",
     "render_frames": "api.cluster",
-    "generate": "generate", "write_scene": "generate",
 }
 
 __all__ = ["Blob", "field", "first_hit", "gradient", "normal", "optical_depth", "roots", "segments", "load_scene",

@@ -15,7 +15,7 @@ from cloudmeta.cli import main
 from cloudmeta.errors import InputError, OutputError
 from cloudmeta.generate import CUTTER, EROSION, KINDS, MARK, PARAMETERS, THRESHOLD, csv_text, iso_u
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
 
 
@@ -23,6 +23,18 @@ SCENES = ROOT / "scenes"
 def clouds():
     """One cloud of each kind, 600 balls, seed 7."""
     return {kind: cm.generate(kind, balls=600, seed=7) for kind in KINDS}
+
+
+def test_generate_is_the_function_however_imported():
+    """``cloudmeta.generate`` is the function even when the package was imported first by its full name."""
+    code = ("from cloudmeta.generate import MARK, write_scene\n"
+            "import cloudmeta.generate\n"
+            "import cloudmeta as cm\n"
+            "from cloudmeta.generate import generate\n"
+            "print(cm.generate is generate, cm.write_scene is write_scene, len(cm.generate('cumulus', balls=40)))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["True", "True", "40"]
 
 
 def test_the_kinds():
