@@ -2,7 +2,7 @@
 with flights tracked from vertex 2 (the default) and with every flight exact, 4 seeds x 1024 paths per
 pixel each; the two are independent unbiased estimates of one image.
 
-Measured (docs/multiple_scattering.md, *Tracked flights*): the difference of the image means in units of
+Measured (docs/benchmarks.md; the design: docs/multiple_scattering.md): the difference of the image means in units of
 its standard error (requirement |z| <= 3), and the RMS over 4 x 4-pixel blocks of the blocks' z-scores
 (requirement <= 1.15: the standard errors are honest and no block is biased). The standard errors come from
 the spread of the seeds' images, not from the paths' own estimates.

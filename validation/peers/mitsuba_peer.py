@@ -9,7 +9,7 @@ voxel i covers [i, i + 1] h and holds the value at its centre). The grid has N v
 box's longest side and cubic voxels (so "256^3" is 256 x 154 x 158 on the cumulus). Everything else is the
 scene's: albedo, HG phase, the directional light (Mitsuba's ``direction`` is the way the light travels,
 -l), the uniform background as a ``constant`` environment (cloudmeta's multiple mode lights the medium
-with it at every order, README "Multiple scattering"), the pinhole camera (docs/model.md §8: vertical fov, so
+with it at every order, docs/multiple_scattering.md), the pinhole camera (docs/model.md §8: vertical fov, so
 ``fov_axis: y``), the resolution, an ``hdrfilm`` in linear RGB with a ``box`` filter. The colours are the
 scene's linear BT.709 RGB as cloudmeta computes them (the light's blackbody through colour-science): the
 rgb variant uses them as they are, so both images are compared in linear RGB before any tone mapping.
