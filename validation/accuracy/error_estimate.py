@@ -16,7 +16,7 @@ Writes validation/results/error_estimate.csv (error_estimate_hybrid.csv with --s
 error_targets.csv with --targets). Exit status 0 only if every
 ratio lies in [0.5, 10] (every target is met).
 
-At 64 x 48 the calibration's grid (renderer.pilot, at least 4,096 rays) is the whole frame, so the suite never
+At 64 x 48 the calibration's grid (renderer.calibrate, at least 4,096 rays) is the whole frame, so the suite never
 sees the grid's sampling error. ``--size W H`` renders the suite at W x H instead, against references rendered at
 ``quality: reference`` (exact shadows) of the same size, cached in validation/results/suite_WxH/ (not committed;
 256 x 192 takes about 8 minutes once on 2 cores). It adds each case's true error over the preset's target and

@@ -8,7 +8,7 @@ docs/error_estimate.md):
     rel. RMSE = sqrt(mean over pixels and RGB of (L - L_ref)^2) / mean over pixels and RGB of S_ref
 
 (S_ref: the reference less the background seen through the media). Settings: the presets draft, default,
-fine (exact shadow rays, calibrated on the frame: renderer.pilot); ``default`` with ``calibrate: false``
+fine (exact shadow rays, calibrated on the frame: renderer.calibrate); ``default`` with ``calibrate: false``
 (the preset's fixed settings, as before the calibration) and with ``shadows: hybrid``; shadow maps
 (``shadows: map``) at the default quality with 128, 384 (the renderer's default) and 1024 texels per side,
 and at draft with 384.
