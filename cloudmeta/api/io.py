@@ -23,7 +23,7 @@ except ImportError:  # not POSIX: temporary files go unlocked (the writer's PID 
 import numpy as np
 
 from ..errors import InputError, OutputError
-from ..scene.colour import DEFAULT_COLOURSPACE, chromaticities, encode_srgb
+from ..scene.colour import DEFAULT_COLOURSPACE, chromaticities
 from ..scene.limits import MAX_EXPOSURE
 
 _CHANNELS = "RGBA"
@@ -305,10 +305,36 @@ def read_exr(path):
     return image, header
 
 
-def write_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
-    """Write an 8-bit sRGB preview: RGB only (the render's RGB is already over its background; alpha is dropped)."""
+def write_png(image, path, exposure=None, colourspace=DEFAULT_COLOURSPACE, display="aces", white_balance=None,
+              scene=None):
+    """Write an 8-bit sRGB picture of a linear image: RGB only (the render's RGB is already over its background;
+    alpha only picks the pixels that ``exposure="auto"`` measures). Through cloudmeta.api.display
+    (docs/display.md): ``display`` aces (OpenColorIO's ACES output transform) or raw (linear times
+    2 ** exposure under the sRGB curve: the preview as it was); ``white_balance`` scene (the light of
+    ``scene``), none, a CIE illuminant's name (D65) or an illuminant's RGB; ``exposure`` stops or auto.
+    None takes the display's default: for aces, white balance to ``scene`` where one is given (else none)
+    and auto exposure; for raw, none and 0 stops."""
+    display, white_balance, exposure, illuminant = png_settings(display, white_balance, exposure, scene)
     with _api_output(path) as tmp:
-        encode_png(image, tmp, exposure, colourspace)
+        encode_png(image, tmp, exposure, colourspace, display, white_balance, illuminant)
+
+
+def png_settings(display="aces", white_balance=None, exposure=None, scene=None):
+    """(display, white_balance, exposure, illuminant) checked, the display's defaults in place of None:
+    white balance to ``scene``'s light where a scene is given and the display is aces (none without one).
+    InputError (one line, naming the setting) before any work, also where aces needs OpenColorIO."""
+    from .display import check_display, require_ocio, resolve, scene_illuminant
+    check_display(display)
+    if white_balance is None and scene is None:
+        white_balance = "none"
+    display, white_balance, exposure = resolve(display, white_balance, exposure)
+    if display == "aces":
+        require_ocio()
+    illuminant = scene_illuminant(scene) if scene is not None and white_balance == "scene" else None
+    if white_balance == "scene" and illuminant is None:
+        raise InputError("white_balance: scene needs the scene: write_png(image, path, scene=scene); or give an "
+                         "illuminant such as D65, or none")
+    return display, white_balance, exposure, illuminant
 
 
 @contextlib.contextmanager
@@ -330,22 +356,36 @@ def _api_output(path, label="path"):
             raise (OSError(exc.errno, text, path) if exc.errno else OSError(text)) from None
 
 
-def encode_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE):
-    """``write_png`` straight to ``path``, without a temporary file (for callers that hold one already)."""
+def encode_png(image, path, exposure=0.0, colourspace=DEFAULT_COLOURSPACE, display="raw", white_balance=None,
+               illuminant=None):
+    """``write_png`` straight to ``path``, without a temporary file (for callers that hold one already); the
+    white balance ``scene`` takes the scene's ``illuminant`` (cloudmeta.api.display.scene_illuminant). Returns
+    the exposure applied, in stops. The display defaults to raw here: callers name the managed one."""
     from PIL import Image
+
+    from .display import display_image
     arr = check_image(image)
-    check_exposure(exposure)
-    pixels = Image.fromarray(encode_srgb(arr[:, :, :3], exposure, colourspace))
-    pixels.save(os.fspath(path), format="PNG")
+    if exposure is None or isinstance(exposure, str):  # the display's default, or auto
+        from .display import check_exposure_setting
+        check_exposure_setting("auto" if exposure is None else exposure)
+    else:
+        check_exposure(exposure)
+    codes, stops = display_image(arr, colourspace, display, white_balance, exposure, illuminant)
+    Image.fromarray(codes).save(os.fspath(path), format="PNG")
+    return stops
 
 
-def encode_outputs(image, tmps, colourspace=DEFAULT_COLOURSPACE, exposure=0.0, error=None, raw=None):
+def encode_outputs(image, tmps, colourspace=DEFAULT_COLOURSPACE, exposure=0.0, error=None, raw=None, display="raw",
+                   white_balance=None, illuminant=None):
     """The one writer of a render's files: the EXR to ``tmps[0]`` (with the ``error`` channels if given) and,
-    where ``tmps`` has a second path, the PNG preview to it. ``tmps`` are atomic_outputs' temporary files, so
-    both are renamed into place together or neither is. ``raw``: the image before denoising (raw.* channels)."""
+    where ``tmps`` has a second path, the PNG to it (``encode_png``: ``display``, ``white_balance``,
+    ``illuminant``, ``exposure``; the EXR never depends on them). ``tmps`` are atomic_outputs' temporary files,
+    so both are renamed into place together or neither is. ``raw``: the image before denoising (raw.* channels).
+    Returns the PNG's exposure in stops (None without a PNG)."""
     encode_exr(image, tmps[0], colourspace=colourspace, error=error, raw=raw)
     if len(tmps) > 1:
-        encode_png(image, tmps[1], exposure=exposure, colourspace=colourspace)
+        return encode_png(image, tmps[1], exposure, colourspace, display, white_balance, illuminant)
+    return None
 
 
 def check_exposure(exposure, label="exposure"):

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..errors import CloudmetaError, InputError, SceneError
 from ..api.runtime import INTERRUPTED, RENDERS, compile_notice, interruptible
-from ..scene.vocabulary import QUALITIES, QUALITY_TARGETS, SHADOW_MAP_RESOLUTION, SHADOW_MODES
+from ..scene.vocabulary import DISPLAYS, QUALITIES, QUALITY_TARGETS, SHADOW_MAP_RESOLUTION, SHADOW_MODES
 
 
 def _render(args):
@@ -29,11 +29,14 @@ def _render(args):
             raise InputError("--denoise: only for a single image, not with --frames, --tiles, --workers, "
                              "--scheduler or an animated scene")
         return _frames(args)  # a sequence, tiles or a cluster (docs/animation.md)
-    from ..api.io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_outputs
+    from ..api.display import check_exposure_setting, check_white_balance
+    from ..api.io import atomic_outputs, check_distinct, check_output_path, encode_outputs, png_settings
     from ..scene import load_scene
 
     if args.exposure is not None:
-        check_exposure(args.exposure, "--exposure")  # nan, inf, 2000: 2 ** exposure overflows
+        check_exposure_setting(args.exposure, "--exposure")  # nan, inf, 2000: 2 ** exposure overflows
+    if args.white_balance is not None:
+        check_white_balance(args.white_balance, "--white-balance")
     overrides = {"quality": args.quality, "shadows": args.shadows, "shadow_map": args.shadow_map}
     scene = load_scene(args.scene, width=args.width, height=args.height, spp=args.spp, render=overrides)
     if args.denoise:
@@ -44,6 +47,10 @@ def _render(args):
         check_output_path(path, ext, label, scene.inputs)
     check_distinct([(label, path) for label, path, _ in outputs])
     exposure = scene.output.exposure if args.exposure is None else args.exposure
+    display, white_balance, illuminant = "raw", None, None
+    if len(outputs) > 1:  # the PNG's settings, checked before the render (aces needs OpenColorIO)
+        display, white_balance, exposure, illuminant = png_settings(
+            args.display or scene.output.display, args.white_balance or scene.output.white_balance, exposure, scene)
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     print(f"cloudmeta: rendering {args.scene}: {w} x {h}, {spp} spp, quality {scene.render.quality}, "
           f"{scene.render.shadows} shadows, "
@@ -55,7 +62,8 @@ def _render(args):
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
         image, error, took, approximation, estimated, raw, scattered = _render_image(
             scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate, denoise=args.denoise)
-        encode_outputs(image, tmps, scene.render.colourspace, exposure, error, raw)
+        stops = encode_outputs(image, tmps, scene.render.colourspace, exposure, error, raw, display, white_balance,
+                               illuminant)
     if error is not None:
         target = (f"render.error {scene.render.error:g}" if scene.render.error is not None else
                   f"quality {scene.render.quality}: {QUALITY_TARGETS.get(scene.render.quality, 'none')}")
@@ -80,6 +88,9 @@ def _render(args):
         print(f"cloudmeta: the approximation's estimated relative RMSE against unbiased multiple scattering: "
               f"{approximation.rel_rmse:.3f} +- {approximation.stderr:.3f} (from {approximation.pixels} of "
               f"{approximation.cloud_pixels} cloud pixels, {approximation.paths} paths each; docs/approximate.md)")
+    if stops is not None:
+        from ..api.display import describe
+        print(f"cloudmeta: PNG: {describe(display, white_balance, exposure, stops)} (docs/display.md)")
     print(f"cloudmeta: rendered in {took:.2f} s; wrote {', '.join(path for _, path, _ in outputs)}")
     return 0
 
@@ -174,6 +185,12 @@ def _inspect(args):
     return inspect_command(args)
 
 
+def _exposure(text):
+    if text == "auto":
+        return text
+    return float(text)
+
+
 def _texels(text):
     value = int(text)
     if value < 2:
@@ -217,7 +234,13 @@ def build_parser():
                    help="shadow rays to every light (exact), light-space maps for directional lights (map), or "
                         "maps where their error bound allows and exact rays elsewhere (hybrid)")
     r.add_argument("--shadow-map", type=_texels, help=f"texels per side of a shadow map (default {SHADOW_MAP_RESOLUTION})")
-    r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: the scene's)")
+    r.add_argument("--exposure", type=_exposure, help="PNG exposure: auto or stops (default: the scene's "
+                                                      "output.exposure, else auto; 0 with --display raw)")
+    r.add_argument("--display", choices=DISPLAYS, help="the PNG's display transform: aces (OpenColorIO's ACES "
+                                                       "output transform for sRGB) or raw (linear x exposure, sRGB "
+                                                       "curve); default: the scene's output.display, else aces")
+    r.add_argument("--white-balance", help="the PNG's white balance: scene (its lights and sky), none, or a CIE "
+                                           "illuminant such as D65 (default: the scene's, else scene; none for raw)")
     r.add_argument("--denoise", action="store_true",
                    help="multiple scattering: denoise the Monte Carlo part with Intel Open Image Denoise (the "
                         "optional extra pyoidn); the EXR keeps the image before it as channels raw.R/G/B/A")

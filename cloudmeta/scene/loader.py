@@ -18,14 +18,14 @@ from ..errors import InputError
 from . import limits as lim
 from .animation import naming_frame, resolve_frame
 from .balls import read_blob
-from .colour import DEFAULT_COLOURSPACE, colourspace_name
-from .document import Context, Node, fmt_numbers, frozen_array, read_yaml
+from .colour import DEFAULT_COLOURSPACE, _is_illuminant as is_illuminant, colourspace_name
+from .document import Context, Node, describe, fmt_numbers, frozen_array, read_yaml
 from .feasibility import check_domain
 from .model import Camera, Density, ImageSettings, Medium, OutputSettings, Phase, RenderSettings, Scene, Surface
 from .atmosphere import DEFAULT_GROUND_ALBEDO, sky_mean
 from .lights import SUN_KEYS, SunLight, read_light, read_sun, unit
-from .vocabulary import (APPROXIMATE_METHODS, DENSITY_MODES, GRID_DEPOSITS, OCTAVES, PHASE_PARAMS, QUALITIES,
-                         SCATTERING_MODES, SHADOW_MODES)
+from .vocabulary import (APPROXIMATE_METHODS, AUTO_EXPOSURE, DENSITY_MODES, DISPLAYS, GRID_DEPOSITS, OCTAVES,
+                         PHASE_PARAMS, QUALITIES, SCATTERING_MODES, SHADOW_MODES, WHITE_BALANCE_WORDS)
 
 #: an up vector closer than this (sine of the angle) to the view direction is refused
 _PARALLEL_SINE = 1e-6
@@ -182,8 +182,18 @@ EXPOSURE = dict(check=lambda v: abs(v) <= lim.MAX_EXPOSURE,
 
 
 def _output(top):
-    n = top.node("output", ("path", "png", "exposure"), {})
-    return OutputSettings(n.path_to("path"), n.path_to("png"), n.number("exposure", 0.0, **EXPOSURE))
+    n = top.node("output", ("path", "png", "exposure", "display", "white_balance"), {})
+    exposure = n.data.get("exposure")
+    if exposure != AUTO_EXPOSURE:
+        exposure = n.number("exposure", None, check=EXPOSURE["check"],
+                            expect=f"{AUTO_EXPOSURE} or {EXPOSURE['expect']}")
+    white_balance = n.data.get("white_balance")
+    if white_balance is not None and not (isinstance(white_balance, str) and (white_balance in WHITE_BALANCE_WORDS
+                                                                              or is_illuminant(white_balance))):
+        n.fail("white_balance", f"expected {', '.join(WHITE_BALANCE_WORDS)} or a CIE illuminant of "
+                                f"colour.SDS_ILLUMINANTS such as D65, D50 or A, got {describe(white_balance)}")
+    return OutputSettings(n.path_to("path"), n.path_to("png"), exposure, n.choice("display", DISPLAYS, "aces"),
+                          white_balance)
 
 
 

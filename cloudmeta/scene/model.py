@@ -91,7 +91,11 @@ class RenderSettings:
 class OutputSettings:
     path: str | None = None  #: EXR, absolute (resolved against the YAML's folder)
     png: str | None = None
-    exposure: float = 0.0
+    #: the PNG's picture (cloudmeta.api.display, docs/display.md); None: the display's default (aces: scene
+    #: and auto; raw: none and 0 stops)
+    exposure: float | str | None = None  #: stops or "auto"
+    display: str = "aces"               #: aces | raw
+    white_balance: str | None = None    #: scene | none | a CIE illuminant's name
 
 
 @dataclass(frozen=True, eq=False)

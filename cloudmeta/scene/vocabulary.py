@@ -43,3 +43,11 @@ SHADOW_MAP_RESOLUTION = 384
 #: CSV headers of a balls file -> does it describe ellipsoids
 CSV_HEADERS = {("x", "y", "z", "radius", "weight"): False,
                ("x", "y", "z", "rx", "ry", "rz", "ax", "ay", "az", "weight"): True}
+
+#: output.display: the PNG's display transform (cloudmeta.api.display): the ACES output transform through
+#: OpenColorIO, or linear times the exposure under the sRGB curve
+DISPLAYS = ("aces", "raw")
+#: output.white_balance besides a CIE illuminant's name: balance to the scene's light, or not at all
+WHITE_BALANCE_WORDS = ("scene", "none")
+#: output.exposure: chosen from the image (cloudmeta.api.display.auto_exposure), else a number of stops
+AUTO_EXPOSURE = "auto"

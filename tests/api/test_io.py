@@ -72,7 +72,7 @@ def test_05_png_is_srgb_rgb(tmp_path):
     im[0, 0, :3] = 0.5
     im[1, 1, :3] = 0.25
     im[:, :, 3] = 0.3  # alpha is dropped: RGB is already over the background
-    write_png(im, path, exposure=1.0)
+    write_png(im, path, exposure=1.0, display="raw")  # raw: linear x 2 ** exposure, the sRGB curve
     px = np.asarray(Image.open(path))
     assert px.shape == (3, 4, 3) and px.dtype == np.uint8
     np.testing.assert_array_equal(px[0, 0], [255, 255, 255])

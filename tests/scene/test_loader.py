@@ -100,7 +100,7 @@ def test_02_defaults(tmp_path):
     assert s.surfaces[0].name == "surface0"
     np.testing.assert_array_equal(s.surfaces[0].color, [1, 1, 1])
     assert s.render == RenderSettings()
-    assert (s.output.path, s.output.png, s.output.exposure) == (None, None, 0.0)
+    assert (s.output.path, s.output.png, s.output.exposure) == (None, None, None)  # None: the display's default
 
 
 def test_03_overrides_replace_image_settings(tmp_path):
