@@ -168,7 +168,8 @@ def parse_conversion(text):
         m = re.fullmatch(r"([0-9.eE+-]+)\s*(um|µm|mm|m)", parts[1].strip())
         if m:
             try:
-                radius = float(m.group(1)) * {"um": 1e-6, "µm": 1e-6, "mm": 1e-3, "m": 1.0}[m.group(2)]
+                # a division by an exact power of ten rounds once: 10um is exactly the double 1e-5
+                radius = float(m.group(1)) / {"um": 1e6, "µm": 1e6, "mm": 1e3, "m": 1.0}[m.group(2)]
             except ValueError:
                 radius = None
             if radius is not None:

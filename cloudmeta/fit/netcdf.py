@@ -93,7 +93,7 @@ def _variable(dataset, variable, path):
 
 
 def _axis_of(dataset, dim):
-    coord = dataset.coords.get(dim)
+    coord = dataset.coords[dim] if dim in dataset.coords else None  # .get would make an index up
     if coord is not None:
         axis = str(coord.attrs.get("axis", "")).upper()
         if axis in ("X", "Y", "Z", "T"):
@@ -134,7 +134,7 @@ def _box(dataset, axes, where):
     """(lower, upper, units, the axes whose coordinates descend) from the coordinates of ``axes``."""
     lower, upper, units, flips = np.zeros(3), np.zeros(3), [], []
     for a, dim in enumerate(axes):
-        coord = dataset.coords.get(dim)
+        coord = dataset.coords[dim] if dim in dataset.coords else None  # .get would make an index up
         if coord is None:
             raise InputError(f"{where}: dimension {dim!r} has no coordinate: give box=((x0, y0, z0), (x1, y1, z1))")
         c = np.asarray(coord.values, dtype=np.float64)
