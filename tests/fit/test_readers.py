@@ -2,6 +2,7 @@
 (tests/data/vdb, validation/tools/write_vdb_fixtures.py) read voxel for voxel; numpy and NetCDF round trips;
 every bad file one InputError line that names it."""
 import json
+import struct
 import sys
 from pathlib import Path
 
@@ -171,6 +172,53 @@ def test_vdb_needs_blosc_extra(monkeypatch):
         read_grid(VDB / "sphere_blosc.vdb")
     assert "pip install blosc" in one_line_naming(exc, VDB / "sphere_blosc.vdb")
     assert read_grid(VDB / "tiles_zlib.vdb").shape == (28, 28, 28)  # zlib needs nothing more
+
+
+def patched_transform(data, was, kind, payload):
+    """The file's bytes with its grid's transform (map ``was``, a scale-translate map) replaced by map ``kind``
+    with ``payload`` (doubles), the descriptor's end offset moved by the change of length."""
+    at = data.index(struct.pack("<I", len(was)) + was.encode())
+    old = 4 + len(was) + 6 * 24
+    new = struct.pack("<I", len(kind)) + kind.encode() + struct.pack(f"<{len(payload)}d", *payload)
+    out = bytearray(data[:at] + new + data[at + old:])
+    grid_pos = data.index(b"Tree_float_5_4_3") + 16 + 4
+    end = struct.unpack("<q", out[grid_pos + 16:grid_pos + 24])[0]
+    out[grid_pos + 16:grid_pos + 24] = struct.pack("<q", end + len(new) - old)
+    return bytes(out)
+
+
+@needs_blosc
+def test_vdb_affine_and_negative_scales(tmp_path):
+    """An AffineMap without rotation reads as the scale and translation it holds; a negative scale flips
+    its axis (voxel 0 lowest in world space). The maps rewritten in place: the sphere's (0.1 and -0.8) as an
+    AffineMap, the scaled noise's with a negative x scale."""
+    data = (VDB / "sphere_blosc.vdb").read_bytes()
+    reference = np.load(VDB / "sphere_blosc.npy").astype(np.float64)
+    box = json.loads((VDB / "sphere_blosc.json").read_text())
+    path = tmp_path / "affine.vdb"
+    m = np.diag([0.1, 0.1, 0.1, 1.0])
+    m[3, :3] = -0.8  # row vectors: world = (i, j, k, 1) m
+    path.write_bytes(patched_transform(data, "UniformScaleTranslateMap", "AffineMap", m.ravel().tolist()))
+    g = read_grid(path)
+    assert np.array_equal(g.density, reference)
+    np.testing.assert_allclose(g.lower, box["lower"], atol=1e-12)
+    np.testing.assert_allclose(g.upper, box["upper"], atol=1e-12)
+    m[1, 0] = 0.05  # a shear
+    path.write_bytes(patched_transform(data, "UniformScaleTranslateMap", "AffineMap", m.ravel().tolist()))
+    with pytest.raises(InputError, match="rotation, shear"):
+        read_grid(path)
+    path = tmp_path / "flipped.vdb"
+    data = (VDB / "scaled_translated.vdb").read_bytes()
+    reference = np.load(VDB / "scaled_translated.npy").astype(np.float64)
+    box = json.loads((VDB / "scaled_translated.json").read_text())
+    # ScaleTranslateMap: translation, scale, then four cached vectors the reader does not need
+    path.write_bytes(patched_transform(data, "ScaleTranslateMap", "ScaleTranslateMap",
+                                       [1.0, 2.0, 3.0, -0.5, 0.25, 2.0] + [0.0] * 12))
+    g = read_grid(path)
+    assert np.array_equal(g.density, reference[::-1]) and not np.array_equal(reference, reference[::-1])
+    (i0, j0, k0), (i1, j1, k1) = box["index_min"], box["index_max"]
+    np.testing.assert_allclose(g.lower, [(i1 + 0.5) * -0.5 + 1, (j0 - 0.5) * 0.25 + 2, (k0 - 0.5) * 2 + 3])
+    np.testing.assert_allclose(g.upper, [(i0 - 0.5) * -0.5 + 1, (j1 + 0.5) * 0.25 + 2, (k1 + 0.5) * 2 + 3])
 
 
 @needs_blosc

@@ -12,7 +12,8 @@ For each NAME.vdb (but those re-saved from another, which hold its values: SAME)
 copyToArray gives them) and NAME.json (that box in index space, and in world space through the grid's
 transform: the outer faces of the first and last voxels).
 
-    --big PATH   also write a 128^3 noise cloud (Blosc) at PATH, for timing the reader (not a fixture)
+    --big PATH   also write a 128^3 noise cloud at PATH (Blosc) and beside it as PATH_half (half floats,
+                 Blosc), PATH_zlib and PATH_raw (uncompressed), for timing the reader (not fixtures)
 """
 import json
 import os
@@ -225,9 +226,19 @@ def main(argv):
                 subprocess.run([exe, src, out(name), str(flags)] + extra, check=True)
                 written.append(name)
         if big:
-            grid = grid_from(noise((128, 128, 128), 7), (0, 0, 0), "density")
+            stem = os.path.splitext(big)[0]
+            os.makedirs(os.path.dirname(os.path.abspath(big)), exist_ok=True)
+            grid = grid_from(noise((128, 128, 128), 7), (0, 0, 0), "density", fog=False)
             vdb.write(big, grids=[grid])
-            print(f"{big}: {os.path.getsize(big)} bytes, 128^3 noise, {grid.leafCount()} leaves")
+            grid.saveFloatAsHalf = True
+            vdb.write(stem + "_half.vdb", grids=[grid])
+            bigs = [big, stem + "_half.vdb"]
+            if exe:
+                for suffix, flags in (("_zlib", 3), ("_raw", 0)):
+                    subprocess.run([exe, big, stem + suffix + ".vdb", str(flags)], check=True)
+                    bigs.append(stem + suffix + ".vdb")
+            for path in bigs:
+                print(f"{path}: {os.path.getsize(path)} bytes, 128^3 noise, {grid.leafCount()} leaves")
 
     for name in written:
         if name not in SAME:
