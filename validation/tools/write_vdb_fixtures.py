@@ -5,12 +5,25 @@ Runs under the system Python that has the pyopenvdb module (Debian: apt-get inst
 /usr/bin/python3 validation/tools/write_vdb_fixtures.py [folder]), not the project's environment; it skips
 (exit 0, one line) where pyopenvdb is missing. pyopenvdb saves with its library's default compression
 (Blosc where the library has it) and cannot choose another, so the zlib, uncompressed and double-precision
-files are re-saved by a ten-line C++ program against the same library (compiled here when g++ and the
+files are re-saved by a short C++ program against the same library (compiled here when g++ and the
 OpenVDB headers, Debian: libopenvdb-dev and libboost-dev, are present; those files are skipped otherwise).
 
-For each NAME.vdb (but those re-saved from another, which hold its values: SAME): NAME.npy (the values over the grid's active-voxel bounding box, as OpenVDB's
-copyToArray gives them) and NAME.json (that box in index space, and in world space through the grid's
-transform: the outer faces of the first and last voxels).
+For each NAME.vdb: NAME.npy (the values over the grid's active-voxel bounding box, as OpenVDB's copyToArray
+gives them) and NAME.json (that box in index space, and in world space through the grid's transform: the
+outer faces of the first and last voxels); the files re-saved from another (SAME) hold its values, which
+OpenVDB's reading of them is checked against here.
+
+    sphere_blosc         a sphere of fog, 0.1 voxels centred on the origin (uniform scale + translation)
+    tiles_blosc          noise around the corner where root, internal and leaf nodes meet, with tiles of
+                         constant value at every level and leaves of one, two and many inactive values
+    tiles_zlib           the same saved with zlib (class unknown: OpenVDB never zips a fog volume)
+    tiles_double         the same as a double-precision grid
+    cloud_half           noise saved as half floats
+    scaled_translated    noise through a non-uniform scale and a translation
+    two_grids            two grids, "temperature" and "density"
+    cloud_zlib_nomask    two_grids saved with zlib and no active-mask compression
+    cloud_raw            scaled_translated saved uncompressed
+    refuse_*             a vector grid, a level set and a rotated transform, which the reader refuses
 
     --big PATH   also write a 128^3 noise cloud at PATH (Blosc) and beside it as PATH_half (half floats,
                  Blosc), PATH_zlib and PATH_raw (uncompressed), for timing the reader (not fixtures)
