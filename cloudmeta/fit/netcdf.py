@@ -4,8 +4,8 @@ xarray and netCDF4).
 One variable with three spatial dimensions and at most one time dimension (any order). Axes are told by
 their coordinate's ``axis`` attribute (X, Y, Z), else by name (x*, y*, z*, height, altitude, level,
 west_east, south_north, bottom_top). Coordinates are voxel centres, evenly spaced (ascending or descending),
-with one length unit on all three axes (m, km); they give the box, each
-voxel half a spacing beyond the first and last centre. A variable without coordinates takes ``box``.
+with one length unit on all three axes (m, km); they give the box, each voxel half a spacing beyond the
+first and last centre. A variable without coordinates takes ``box``. Stretched grids are refused.
 
 The variable's ``units`` attribute goes with its values to grid.read_grid, which makes sigma_t of them.
 """
@@ -59,7 +59,7 @@ def read_netcdf(path, *, variable=None, time=None, box=None):
                 raise InputError(f"{where}: time index must be an integer in 0..{n - 1}, got {time!r}")
             data = data.isel({time_dim: int(time)})
         elif time is not None:
-            raise InputError(f"{where}: no time dimension (dimensions {', '.join(data.dims)}): drop the time index")
+            raise InputError(f"{where}: no time dimension (dimensions {', '.join(map(str, data.dims))}): drop the time index")
         if data.dtype.kind not in "fiu":
             raise InputError(f"{where}: expected real values, got dtype {data.dtype}")
         try:
