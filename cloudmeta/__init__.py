@@ -33,11 +33,12 @@ _EXPORTS = {
     "read_exr": "api.io", "write_exr": "api.io", "write_png": "api.io",
     "load_scene": "scene", "render_frame": "renderer", "RenderResult": "renderer",
     "render_frames": "api.cluster",
+    "fit_volume": "fit",
 }
 
 __all__ = ["Blob", "field", "first_hit", "gradient", "normal", "optical_depth", "roots", "segments", "load_scene",
            "render", "render_frame", "RenderResult", "render_frames", "write_exr", "read_exr", "write_png", "CloudmetaError", "InputError",
-           "SceneError", "OutputError", "generate", "write_scene"]
+           "SceneError", "OutputError", "generate", "write_scene", "fit_volume"]
 __version__ = "0.1.0"
 
 

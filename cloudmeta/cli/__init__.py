@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from ..errors import CloudmetaError, InputError, SceneError
+from ..fit import cli as fit_cli
 from ..api.runtime import INTERRUPTED, RENDERS, compile_notice, interruptible
 from ..scene.vocabulary import DISPLAYS, QUALITIES, QUALITY_TARGETS, SHADOW_MAP_RESOLUTION, SHADOW_MODES
 
@@ -281,6 +282,7 @@ def build_parser():
     g.add_argument("--overwrite", action="store_true",
                    help="replace the scene and balls file if they exist (only files that cloudmeta generate wrote)")
     g.set_defaults(run=_generate)
+    fit_cli.add_parser(sub)
     c = sub.add_parser("compile", help="compile the kernels for every kind of scene now (once per machine; "
                                        "for worker images, clusters and test runs)")
     c.add_argument("--jobs", type=_positive, default=2, help="processes side by side (default 2)")

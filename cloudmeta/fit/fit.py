@@ -1,0 +1,397 @@
+"""Fit metaballs to a voxel grid: placement, non-negative least squares, refinement (docs/fit.md).
+
+The fitted medium's density is the sum of the ball fields, sigma_t(x) = scale x sum_i q_i k(|x - c_i|^2 / R_i^2)
+with the `wyvill6` kernel k and q_i >= 0 (docs/model.md §1, §4: mode `field`, its threshold T at 10^-6 of the
+largest weight, the least the loader accepts, so that F < T only where F is within 10^-6 of nothing).
+
+Method:
+1. Placement: a lattice over the grid's occupied blocks, spaced so that it holds a third of the ball budget;
+   each ball's radius is 1.6 lattice steps (compact support: the matrix of kernel values at the voxel
+   centres, one column a ball, is sparse).
+2. Weights: min ||A q - y||^2 over q >= 0, on every voxel that a ball reaches (the occupied voxels and their
+   empty surroundings: without them the weights oscillate). Accelerated projected gradient (FISTA with
+   adaptive restart) on columns scaled to unit norm, warm-started between rounds.
+3. Refinement (Muraki's splitting, on lattices): each round scores the unused points of the next finer
+   lattices (spacing halved, radius with it) by the decrease of the squared residual each would give alone,
+   (a_j . r)_+^2 / |a_j|^2, adds the best, solves again and drops balls whose weight fell to 0; until the
+   budget of balls or the target error is reached.
+4. Radii: the lattice's radius factor is chosen from a few values by the coarse lattice's residual.
+Deterministic: no random numbers; ties are broken by index.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field as dc_field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError
+
+RADIUS_FACTORS = (1.4, 1.6, 1.9)   #: candidate radii of the coarse lattice, in lattice steps
+FIRST_SHARE = 1 / 3               #: share of the ball budget that the first lattice may take
+THRESHOLD_RATIO = 1.000001e-6       #: T / largest weight: just above the least the loader allows (|q| <= 10^6 T)
+
+
+def kernel(u):
+    """wyvill6, k(u) = (1 - u)^2 (1 - 4u/9) for u < 1, else 0 (docs/model.md §1)."""
+    u = np.asarray(u, dtype=float)
+    return np.where(u < 1.0, (1.0 - u) ** 2 * (1.0 - 4.0 * u / 9.0), 0.0)
+
+
+@dataclass
+class FitResult:
+    """The fitted balls (centres, radii in grid units; weights q >= 0 in sigma_t per unit length, scale 1),
+    the grid's box, and the fit's record: density L2 error on the grid by the solver's own matrix, balls
+    per round, time."""
+    centers: np.ndarray
+    radii: np.ndarray
+    weights: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    density_error: float
+    rounds: list = dc_field(default_factory=list)
+    seconds: float = 0.0
+    cpu_seconds: float = 0.0
+    radius_factor: float = 1.6
+    source: str = ""
+    variable: str = ""
+    errors: dict = dc_field(default_factory=dict)
+    paths: tuple = ()
+
+    def __len__(self):
+        return len(self.weights)
+
+    @property
+    def threshold(self):
+        return THRESHOLD_RATIO * float(self.weights.max())
+
+    def blob(self):
+        """The fitted medium's blob (cloudmeta.Blob: wyvill6, spheres, the threshold written to the scene)."""
+        from ..scene.blob import Blob
+        return Blob(self.centers, self.radii, self.weights, kernel="wyvill6", threshold=self.threshold)
+
+
+class _Problem:
+    """The grid, its voxel size and the columns of the kernel matrix of the balls in play."""
+
+    def __init__(self, density, lower, upper):
+        self.y = np.ascontiguousarray(density, dtype=float)
+        self.shape = np.array(self.y.shape)
+        self.lower = np.asarray(lower, dtype=float)
+        self.upper = np.asarray(upper, dtype=float)
+        self.h = (self.upper - self.lower) / self.shape
+        self.yflat = self.y.ravel()
+        self.ynorm = float(np.linalg.norm(self.yflat))
+        self.occupied = self.y > 0
+
+    def columns(self, centers, radius):
+        """CSC matrix (voxels x balls) of k(|x_v - c|^2 / R^2) at the voxel centres x_v, one radius."""
+        h = self.h
+        reach = np.ceil(radius / h).astype(np.int64)
+        ax = [np.arange(-r, r + 2) for r in reach]
+        ox, oy, oz = np.meshgrid(*ax, indexing="ij")
+        offs = np.stack([ox.ravel(), oy.ravel(), oz.ravel()], axis=1)
+        n = len(centers)
+        cols, rows, vals = [], [], []
+        idx = (centers - self.lower) / h - 0.5          # continuous voxel index of each centre
+        base = np.floor(idx).astype(np.int64)
+        chunk = max(1, 4_000_000 // len(offs))
+        nx, ny, nz = self.shape
+        for s in range(0, n, chunk):
+            b = base[s:s + chunk, None, :] + offs[None, :, :]        # (m, K, 3) voxel indices
+            d = (b - idx[s:s + chunk, None, :]) * h
+            u = np.einsum("mkc,mkc->mk", d, d) / radius ** 2
+            ok = (u < 1.0) & (b >= 0).all(axis=2) & (b[..., 0] < nx) & (b[..., 1] < ny) & (b[..., 2] < nz)
+            m_i, k_i = np.nonzero(ok)
+            bb = b[m_i, k_i]
+            rows.append((bb[:, 0] * ny + bb[:, 1]) * nz + bb[:, 2])
+            cols.append(m_i + s)
+            uu = u[m_i, k_i]
+            vals.append((1.0 - uu) ** 2 * (1.0 - 4.0 * uu / 9.0))
+        rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+        cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
+        vals = np.concatenate(vals) if vals else np.zeros(0)
+        return sp.csc_matrix((vals, (rows, cols)), shape=(int(np.prod(self.shape)), n))
+
+    def blocks(self, spacing):
+        """The lattice of ``spacing`` (physical; stretched per axis to fill the box): (counts per axis, the
+        block index of every voxel, flat, in density.ravel() order, and the stretched step per axis)."""
+        counts = np.maximum(1, np.floor((self.upper - self.lower) / spacing + 1e-9).astype(np.int64))
+        step = (self.upper - self.lower) / counts
+        vidx = [np.minimum(((np.arange(s) + 0.5) * self.h[a] // step[a]).astype(np.int64), counts[a] - 1)
+                for a, s in enumerate(self.shape)]
+        key = (vidx[0][:, None, None] * counts[1] + vidx[1][None, :, None]) * counts[2] + vidx[2][None, None, :]
+        return counts, key.ravel(), step
+
+    def lattice(self, spacing):
+        """(centres, block keys, largest step) of the lattice of ``spacing`` at the middle of each block of
+        voxels that holds density."""
+        counts, key, step = self.blocks(spacing)
+        keys = np.unique(key[self.yflat > 0])
+        bi = np.stack(np.unravel_index(keys, tuple(counts)), axis=1)
+        return self.lower + (bi + 0.5) * step, keys, float(step.max())
+
+def _fista(A, y, w0, iterations, tol=1e-5):
+    """min 0.5 |A w - y|^2, w >= 0: accelerated projected gradient on unit-norm columns, with adaptive
+    restart (O'Donoghue & Candes 2015). Returns w."""
+    # only the voxels that some ball reaches take part (the others add a constant to the residual)
+    used = np.zeros(A.shape[0], dtype=bool)
+    used[A.indices] = True
+    rows = np.flatnonzero(used)
+    lookup = np.cumsum(used) - 1
+    A = sp.csc_matrix((A.data, lookup[A.indices], A.indptr), shape=(len(rows), A.shape[1]))
+    y = y[rows]
+    norms = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
+    norms[norms == 0] = 1.0
+    B = (A @ sp.diags(1.0 / norms)).tocsc()
+    Bt = B.T.tocsr()
+    # Lipschitz constant |B|^2 by power iteration (a 5 % margin over its estimate)
+    v = np.ones(B.shape[1]) / math.sqrt(B.shape[1])
+    lam = 1.0
+    for _ in range(30):
+        z = Bt @ (B @ v)
+        lam_new = float(np.linalg.norm(z))
+        v = z / lam_new
+        if abs(lam_new - lam) < 1e-3 * lam_new:
+            lam = lam_new
+            break
+        lam = lam_new
+    step = 1.0 / (1.05 * lam)
+    x = np.maximum(w0 * norms, 0.0)
+    z, t = x.copy(), 1.0
+    f_old = np.inf
+    for it in range(iterations):
+        r = B @ z - y
+        g = Bt @ r
+        x_new = np.maximum(z - step * g, 0.0)
+        t_new = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))
+        if np.dot(z - x_new, x_new - x) > 0:   # restart: momentum points uphill
+            t_new = 1.0
+            z = x_new.copy()
+        else:
+            z = x_new + ((t - 1.0) / t_new) * (x_new - x)
+        dx = np.linalg.norm(x_new - x)
+        x, t = x_new, t_new
+        if it % 10 == 9:
+            f = float(np.dot(r, r))
+            if f_old - f < tol * f_old and dx < tol * (np.linalg.norm(x) + 1e-300):
+                break
+            f_old = f
+    return x / norms
+
+
+def _progress(total, show):
+    if not show:
+        return None
+    from tqdm import tqdm
+    return tqdm(total=total, unit="ball", desc="fit", leave=False)
+
+
+def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200, progress=None,
+               error_check=None, max_rounds=40, growth=0.5):
+    """Fit balls to ``density`` (float (nx, ny, nz), >= 0) on the box [lower, upper]; see ``fit_volume``.
+    ``error_check(result) -> float``, if given, is the error that ``error`` targets (else the density L2
+    error on the grid). Each round adds ``growth`` times the balls in play (at least 64)."""
+    start, cpu0 = time.perf_counter(), time.process_time()
+    P = _Problem(density, lower, upper)
+    if P.ynorm == 0.0:
+        raise InputError("grid: the density is 0 everywhere; there is nothing to fit")
+    budget = int(balls) if balls is not None else max(8, int(P.occupied.sum()) // 4)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    bar = _progress(budget, progress)
+
+    # 1. the first lattice: the finest spacing whose occupied blocks stay within FIRST_SHARE of the budget
+    target = max(1, int(FIRST_SHARE * budget))
+    if error is not None:  # an error target: start coarse (a ball per 4^3 occupied voxels at most), grow
+        target = min(target, max(8, int(P.occupied.sum()) // 64))
+    hmin = float(P.h.min())
+    spacing = float((P.upper - P.lower).max())
+    centers, _, step = P.lattice(spacing)
+    while spacing / 1.1 >= hmin:
+        c2, _, s2 = P.lattice(spacing / 1.1)
+        if len(c2) > target:
+            break
+        spacing, centers, step = spacing / 1.1, c2, s2
+
+    # the first lattice's radius: the best of a few factors, by the residual of a short solve
+    best = None
+    for f in RADIUS_FACTORS:
+        A = P.columns(centers, f * step)
+        w = _fista(A, P.yflat, np.zeros(len(centers)), iterations // 4)
+        res = float(np.linalg.norm(A @ w - P.yflat))
+        if best is None or res < best[0] - 1e-12 * P.ynorm:
+            best = (res, f, A, w)
+    _, factor, A, w = best
+    radii = np.full(len(centers), factor * step)
+    w = _fista(A, P.yflat, w, iterations)
+
+    def prune(centers, radii, w, A):
+        keep = w > 0
+        return centers[keep], radii[keep], w[keep], A[:, keep]
+
+    centers, radii, w, A = prune(centers, radii, w, A)
+    err = float(np.linalg.norm(A @ w - P.yflat) / P.ynorm)
+    rounds = [{"balls": int(len(w)), "spacing": step, "density_error": err}]
+    if bar is not None:
+        bar.update(len(w))
+
+    # 2. refinement: finer lattices (spacing halved each), their blocks scored by the residual
+    levels = []          # [spacing, counts, block key of every voxel, unused block keys]
+    s = spacing / 2
+    while s >= 0.5 * hmin and len(levels) < 5:   # down to two balls a voxel
+        counts, key, st = P.blocks(s)
+        levels.append([s, counts, key, np.unique(key[P.yflat > 0]), st])
+        s /= 2
+    for _ in range(max_rounds):
+        if len(w) >= budget or not levels:
+            break
+        if error is not None:
+            e = err if error_check is None else error_check(
+                _result(centers, radii, w, P, err, rounds, start, cpu0, factor))
+            rounds[-1]["target_error"] = e
+            if e <= error:
+                break
+        r = P.yflat - A @ w
+        add = max(1, min(budget - len(w), max(int(growth * len(w)), 64)))
+        gains, picks = [], []
+        for li, (s_l, counts, key, unused, st) in enumerate(levels[:2]):
+            total = np.bincount(key, weights=r, minlength=int(np.prod(counts)))[unused]
+            n = np.bincount(key, minlength=int(np.prod(counts)))[unused]
+            gains.append(np.where(total > 0, total ** 2 / np.maximum(n, 1), 0.0))
+            picks.append(np.full(len(unused), li))
+        gain = np.concatenate(gains)
+        which = np.concatenate(picks)
+        local = np.concatenate([np.arange(len(g)) for g in gains])
+        order = np.lexsort((local, which, -gain))[:add]
+        order = order[gain[order] > 0]
+        if len(order) == 0:
+            break
+        new_c, new_r = [], []
+        for li in range(min(2, len(levels))):
+            chosen = np.sort(local[order[which[order] == li]])
+            if len(chosen) == 0:
+                continue
+            s_l, counts, key, unused, st = levels[li]
+            bi = np.stack(np.unravel_index(unused[chosen], tuple(counts)), axis=1)
+            new_c.append(P.lower + (bi + 0.5) * st)
+            new_r.append(np.full(len(chosen), factor * float(st.max())))
+            levels[li][3] = np.delete(unused, chosen)
+        levels = [lv for lv in levels if len(lv[3])]
+        new_c, new_r = np.concatenate(new_c), np.concatenate(new_r)
+        cols = [P.columns(new_c[new_r == R], R) for R in np.unique(new_r)]
+        new_c = np.concatenate([new_c[new_r == R] for R in np.unique(new_r)])
+        new_r = np.concatenate([new_r[new_r == R] for R in np.unique(new_r)])
+        centers = np.concatenate([centers, new_c])
+        radii = np.concatenate([radii, new_r])
+        A = sp.hstack([A] + cols, format="csc")
+        w = _fista(A, P.yflat, np.concatenate([w, np.zeros(len(new_c))]), iterations)
+        centers, radii, w, A = prune(centers, radii, w, A)
+        if len(w) > budget:  # the smallest contributions (weight x column norm) go, the rest re-solved
+            contrib = w * np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
+            top = np.sort(np.lexsort((np.arange(len(w)), -contrib))[:budget])
+            centers, radii, w, A = centers[top], radii[top], w[top], A[:, top]
+            w = _fista(A, P.yflat, w, iterations // 2)
+            centers, radii, w, A = prune(centers, radii, w, A)
+        err_old, err = err, float(np.linalg.norm(A @ w - P.yflat) / P.ynorm)
+        rounds.append({"balls": int(len(w)), "spacing": float(radii.min() / factor), "density_error": err})
+        if err > (1.0 - 1e-3) * err_old:  # the candidates left no longer help
+            break
+        if bar is not None:
+            bar.n = min(budget, int(len(w)))
+            bar.refresh()
+    if bar is not None:
+        bar.close()
+    return _result(centers, radii, w, P, err, rounds, start, cpu0, factor)
+
+
+def _result(centers, radii, w, P, err, rounds, start, cpu0, factor, source="", variable=""):
+    return FitResult(centers=centers.copy(), radii=radii.copy(), weights=w.copy(), lower=P.lower.copy(),
+                     upper=P.upper.copy(), density_error=err, rounds=list(rounds),
+                     seconds=time.perf_counter() - start, cpu_seconds=time.process_time() - cpu0,
+                     radius_factor=factor, source=source, variable=variable)
+
+
+def _as_grid(grid, variable=None, time=None):
+    """A VoxelGrid from a VoxelGrid, a path, or a (density, lower, upper) tuple."""
+    from .grid import VoxelGrid, read_grid
+    if isinstance(grid, VoxelGrid):
+        return grid
+    if isinstance(grid, tuple) and len(grid) == 3:
+        density, lower, upper = grid
+        return VoxelGrid(np.asarray(density, dtype=float), np.asarray(lower, float), np.asarray(upper, float),
+                         "", "", "")
+    return read_grid(grid, variable=variable, time=time)
+
+
+def check_grid(grid):
+    """Refuse a grid that cannot be fitted, in one line naming it."""
+    where = grid.source or "grid"
+    d = np.asarray(grid.density)
+    if d.ndim != 3 or min(d.shape) < 2:
+        raise InputError(f"{where}: expected a 3D grid of at least 2 voxels a side, got shape {d.shape}")
+    if not np.isfinite(d).all() or (d < 0).any():
+        raise InputError(f"{where}: the density must be finite and >= 0")
+    if not (d > 0).any():
+        raise InputError(f"{where}: the density is 0 everywhere; there is nothing to fit")
+    if not (np.asarray(grid.upper, float) > np.asarray(grid.lower, float)).all():
+        raise InputError(f"{where}: the box's upper corner must exceed its lower corner on every axis")
+
+
+def fit_volume(grid, output=None, *, balls=None, error=None, variable=None, time=None, rays=None,
+               overwrite=False, progress=None, command=None):
+    """Fit metaballs to a voxel cloud and measure the fit (docs/fit.md).
+
+    grid      a VoxelGrid (cloudmeta.fit.read_grid), a path read by read_grid, or (density, lower, upper)
+    output    a scene path (.yaml): the scene and its balls file (same name, .csv) are written atomically;
+              an existing file is replaced only with ``overwrite`` and only if cloudmeta fit wrote it
+    balls     the most balls; error: the target relative RMSE of optical depth along the random rays.
+              The fit stops at whichever comes first; with neither, error = 0.03
+    variable, time   passed to read_grid for a path
+    rays      rays of the optical-depth error (default error.RAYS = 10^4)
+    Returns the FitResult with ``errors`` set: {'density', 'depth', 'rays', 'samples'} (cloudmeta.fit.error).
+    """
+    from . import error as E
+    from .writer import check_paths, normalised, write_fit
+    for label, v, ok in (("balls", balls, lambda v: isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+                          and v >= 1),
+                         ("error", error, lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
+                          and 0 < v < 1)):
+        if v is not None and not ok(v):
+            raise InputError(f"{label}: expected {'an integer >= 1' if label == 'balls' else 'a number in (0, 1)'}"
+                             f", got {v!r}"[:200])
+    if balls is None and error is None:
+        error = 0.03
+    g = _as_grid(grid, variable, time)
+    check_grid(g)
+    inputs = [g.source] if g.source else []
+    if output is not None:
+        check_paths(output, overwrite, inputs)
+    n_rays = E.RAYS if rays is None else int(rays)
+    reference = E.depth_reference(g.density, g.lower, g.upper, n_rays)
+
+    def written_blob(result):
+        from ..scene.blob import Blob
+        c, r, q, scale, threshold = normalised(result)
+        return Blob(c, r, q, kernel="wyvill6", threshold=threshold), scale
+
+    def check(result):
+        blob, scale = written_blob(result)
+        return E.depth_error(blob, scale, g.density, g.lower, g.upper, reference=reference)[0]
+
+    budget = balls
+    if budget is None:  # an error target alone: at most a ball for every 2 occupied voxels
+        budget = max(8, int((np.asarray(g.density) > 0).sum()) // 2)
+    result = fit_arrays(g.density, g.lower, g.upper, balls=budget, error=error, progress=progress,
+                        error_check=check if error is not None else None)
+    result.source, result.variable = g.source, g.variable
+    blob, scale = written_blob(result)
+    result.errors = {"density": E.density_error(blob, scale, g.density, g.lower, g.upper),
+                     "depth": E.depth_error(blob, scale, g.density, g.lower, g.upper, reference=reference)[0],
+                     "rays": n_rays, "samples": E.SAMPLES}
+    if output is not None:
+        result.paths = write_fit(result, output, result.errors, overwrite, command, inputs)
+    return result
