@@ -51,6 +51,10 @@ AEROSOL_DEPTH_RANGE = (0.0, 5.0)
 #: the sun's elevation, degrees: Kasten & Young's air mass holds from the horizon up
 ELEVATION_RANGE = (0.0, 90.0)
 DEFAULT_GROUND_ALBEDO = 0.1
+#: the air between the observer and the ground: a line of sight at depression d crosses GROUND_AIR_PATH / sin d
+#: air masses before it meets the ground (an observer 0.1 scale heights up: about 800 m under the 8 km of the
+#: Rayleigh atmosphere), at most the horizon's; so the ground fades into the haze towards the horizon
+GROUND_AIR_PATH = 0.1
 #: the sky table: rows are view elevations -90 .. 90 degrees, 1 degree apart (row i: elevation i - 90)
 SKY_ROWS = 181
 #: azimuths the sky's phase functions are averaged over (a full circle, 5 degrees apart)
@@ -212,11 +216,37 @@ def _gauss_elevations():
     return np.degrees(e), w * (np.pi / 4.0) * np.sin(e) * np.cos(e) * 2.0 * np.pi
 
 
+def ground_air_mass(view_deg):
+    """The air masses between the observer and the ground along view elevations ``view_deg`` < 0 (degrees):
+    GROUND_AIR_PATH / sin(depression), at most the horizon's air mass (Kasten & Young)."""
+    depression = np.radians(-np.asarray(view_deg, np.float64))
+    with np.errstate(divide="ignore"):
+        return np.minimum(GROUND_AIR_PATH / np.sin(depression), air_mass(0.0))
+
+
+def _ground_spectra(view_deg, sun_deg, aerosol_depth, ground):
+    """(n, wavelengths) the ground of spectral radiance ``ground`` seen along view elevations ``view_deg`` < 0
+    through the air below the observer (``ground_air_mass``): L = ground T + L_air (1 - T), T = exp(-tau m_g),
+    L_air = E0 exp(-tau m_s) sum_k omega_k tau_k <p_k> / tau, the light of the sun (as it reaches the ground)
+    scattered once towards the observer per unit optical path: the sky's formula (``_sky_spectra``) for a
+    path low in the air, over which the sun's transmittance is the ground's."""
+    _, sun, _, _ = spectra()
+    tau_r, tau_a = _depths(aerosol_depth)
+    tau = tau_r + tau_a
+    p_r, p_a = _mean_phases(view_deg, sun_deg)
+    transmittance = np.exp(-tau * ground_air_mass(view_deg)[:, None])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        air = sun * np.exp(-tau * air_mass(sun_deg)) * np.where(
+            tau > 0, (tau_r * p_r[:, None] + AEROSOL_ALBEDO * tau_a * p_a[:, None]) / tau, 0.0)
+    return ground * transmittance + air * (1.0 - transmittance)
+
+
 def sky_xyz(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, ground_albedo=DEFAULT_GROUND_ALBEDO):
     """(181, 3) XYZ of the sky's radiance at view elevations -90 .. 90 degrees (row i: elevation i - 90),
     per unit extraterrestrial luminance of the sun. Above the horizon, ``_sky_spectra``; below it a
-    Lambertian ground of albedo ``ground_albedo`` lit by the sun (sin h E0 exp(-m tau)) and the sky:
-    L = albedo / pi (E_sun + E_sky), E_sky = integral over the upper hemisphere of L cos(zenith)."""
+    Lambertian ground of albedo ``ground_albedo`` lit by the sun (sin h E0 exp(-m tau)) and the sky,
+    L = albedo / pi (E_sun + E_sky), E_sky = integral over the upper hemisphere of L cos(zenith), seen through
+    the air below the observer (``_ground_spectra``): towards the horizon it fades into the haze."""
     s, aerosol_depth = float(sun_elevation_deg), float(aerosol_depth)
     _check(s, aerosol_depth)
     if not 0.0 <= ground_albedo <= 1.0:
@@ -228,7 +258,7 @@ def sky_xyz(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, ground_albed
     e_sun = np.sin(np.radians(s)) * sun_spectrum(s, aerosol_depth)
     ground = ground_albedo / np.pi * (e_sun + e_sky)
     out = np.empty((SKY_ROWS, 3))
-    out[:90] = ground @ weights
+    out[:90] = _ground_spectra(np.arange(-90.0, 0.0), s, aerosol_depth, ground) @ weights
     out[90:] = sky @ weights
     return out
 

@@ -156,10 +156,11 @@ def test_07b_horizon_brighter_than_zenith_in_a_clear_sky():
         assert horizon_over_zenith(sun, 0.4) < 0.5, sun    # hazy, the sun high: the aureole at the zenith
 
 
-def test_08_ground_below_the_horizon_is_lambertian():
+def test_08_ground_below_the_horizon_is_lambertian(monkeypatch):
     sun, aerosol_depth, albedo = 35.0, 0.15, 0.25
+    monkeypatch.setattr(atm, "GROUND_AIR_PATH", 0.0)  # the ground itself, no air in between (test_08b)
     xyz = atm.sky_xyz(sun, aerosol_depth, albedo)
-    assert np.all(xyz[:90] == xyz[0])                              # the same below the horizon
+    np.testing.assert_allclose(xyz[:90], xyz[[0] * 90], rtol=1e-14)  # the same below the horizon
     np.testing.assert_array_equal(atm.sky_xyz(sun, aerosol_depth, 0.0)[:90], 0.0)
     np.testing.assert_array_equal(atm.sky_xyz(sun, aerosol_depth, 0.5)[90:], xyz[90:])  # sky: no albedo
     # L = albedo / pi (sin(h) E_sun + integral of L_sky cos(zenith) dOmega), the integral by the trapezoid
@@ -169,6 +170,30 @@ def test_08_ground_below_the_horizon_is_lambertian():
     e_sky = 2 * np.pi * np.radians(1.0) * (f[1:-1].sum(axis=0) + (f[0] + f[-1]) / 2)
     expected = albedo / np.pi * (np.sin(np.radians(sun)) * atm.sun_xyz(sun, aerosol_depth) + e_sky)
     np.testing.assert_allclose(xyz[0], expected, rtol=1e-3)
+
+
+def test_08b_the_ground_fades_into_the_haze_towards_the_horizon(monkeypatch):
+    """Below the horizon the ground is seen through GROUND_AIR_PATH / sin(depression) air masses:
+    L = L_ground T + L_air (1 - T), its haze brightest, and the ground least visible, at the horizon."""
+    sun, aerosol_depth, albedo = 35.0, 0.1, 0.1
+    hazy = atm.sky_xyz(sun, aerosol_depth, albedo)
+    monkeypatch.setattr(atm, "GROUND_AIR_PATH", 0.0)
+    bare = atm.sky_xyz(sun, aerosol_depth, albedo)
+    air = atm.sky_xyz(sun, aerosol_depth, 0.0)  # no ground light: the air's alone
+    monkeypatch.undo()
+    air_only = atm.sky_xyz(sun, aerosol_depth, 0.0)
+    np.testing.assert_array_equal(air[:90], 0.0)
+    np.testing.assert_array_equal(hazy[90:], bare[90:])                 # the sky is unchanged
+    assert np.all(np.diff(air_only[:90, 1]) > 0)                         # haze grows towards the horizon
+    assert np.all(np.diff(hazy[:90, 1]) > 0)
+    # looking straight down through 0.1 air masses the ground dominates; one degree down, the haze
+    assert abs(hazy[0, 1] - bare[0, 1]) < 0.1 * bare[0, 1]
+    assert air_only[89, 1] > 0.5 * hazy[89, 1]
+    # the step at the horizon is smaller than the bare ground's: no hard band
+    assert abs(hazy[90, 1] - hazy[89, 1]) < 0.5 * abs(hazy[90, 1] - bare[89, 1])
+    # at the horizon's air mass the haze is (nearly) the horizon's own sky
+    assert atm.ground_air_mass(-1e-9) == pytest.approx(atm.air_mass(0.0))
+    assert atm.ground_air_mass(-90.0) == pytest.approx(atm.GROUND_AIR_PATH)
 
 
 def test_09_sky_mean_weights_by_solid_angle():
