@@ -8,8 +8,8 @@ screen is made here, in three steps, each of which can be turned off:
    camera balanced to the light that falls on the scene), a named CIE illuminant, or none (the working
    colourspace's white, which is the display's for BT.709);
 2. **exposure**: stops, or ``auto``: the ``AUTO_PERCENTILE``-th percentile of the luminance of the pixels
-   whose alpha exceeds ``AUTO_ALPHA`` (the cloud; every pixel where there is none) is brought to
-   ``AUTO_LEVEL[display]``;
+   whose alpha exceeds ``AUTO_ALPHA`` (the cloud), or of the whole frame where that is brighter, is brought
+   to ``AUTO_LEVEL[display]``;
 3. **display**: ``aces``, the ACES output transform for an sRGB display through OpenColorIO's built-in
    config (ACES 2.0 SDR 100 nits where the installed OpenColorIO has it): a filmic tone curve that rolls
    highlights off to white instead of clipping them; or ``raw``: linear times 2^exposure, the sRGB curve,
@@ -199,14 +199,15 @@ def luminance(rgb709):
 
 def auto_exposure(rgb709, alpha=None, display="aces"):
     """Stops that bring the AUTO_PERCENTILE-th percentile of the luminance of the pixels with alpha above
-    AUTO_ALPHA (all pixels where ``alpha`` is None or none passes) to AUTO_LEVEL[display]; 0 for a black
-    image. Within +-MAX_EXPOSURE."""
+    AUTO_ALPHA (the cloud) to AUTO_LEVEL[display], or that of the whole frame where it is brighter (a cloud
+    darker than its sky: the sky is not blown out); the whole frame's where ``alpha`` is None or no pixel
+    passes. 0 for a black image. Within +-MAX_EXPOSURE."""
     y = luminance(rgb709).ravel()
+    level = float(np.percentile(y, AUTO_PERCENTILE))
     if alpha is not None:
         cloud = np.asarray(alpha, np.float64).ravel() > AUTO_ALPHA
         if np.any(cloud):
-            y = y[cloud]
-    level = float(np.percentile(y, AUTO_PERCENTILE))
+            level = max(level, float(np.percentile(y[cloud], AUTO_PERCENTILE)))
     if not level > 0:
         return 0.0
     return float(np.clip(np.log2(AUTO_LEVEL[display] / level), -MAX_EXPOSURE, MAX_EXPOSURE))

@@ -83,13 +83,21 @@ def test_scene_illuminant_is_the_sun_and_the_sky(tmp_path):
 
 def test_auto_exposure_brings_its_percentile_to_its_level():
     im = image(40, 50)
+    im[im[..., 3] <= d.AUTO_ALPHA, :3] *= 0.3  # a sky darker than the cloud
     stops = d.auto_exposure(im[..., :3], im[..., 3], "aces")
     y = d.luminance(im[..., :3])[im[..., 3] > d.AUTO_ALPHA]
     assert np.percentile(y, d.AUTO_PERCENTILE) * 2 ** stops == pytest.approx(d.AUTO_LEVEL["aces"], rel=1e-12)
-    # the background (alpha <= 0.5) does not count: making it bright changes nothing
+    # a background (alpha <= 0.5) darker than the cloud does not count ...
+    dark = im.copy()
+    dark[dark[..., 3] <= d.AUTO_ALPHA, :3] *= 0.01
+    assert d.auto_exposure(dark[..., :3], dark[..., 3], "aces") == stops
+    # ... a brighter one does: the frame's percentile then reaches the level, the cloud stays below it
     bright = im.copy()
     bright[bright[..., 3] <= d.AUTO_ALPHA, :3] = 1e3
-    assert d.auto_exposure(bright[..., :3], bright[..., 3], "aces") == stops
+    lower = d.auto_exposure(bright[..., :3], bright[..., 3], "aces")
+    assert np.percentile(d.luminance(bright[..., :3]), d.AUTO_PERCENTILE) * 2 ** lower == pytest.approx(
+        d.AUTO_LEVEL["aces"], rel=1e-12)
+    assert lower < stops
     # no cloud: every pixel counts; black: 0 stops
     assert d.auto_exposure(im[..., :3], np.zeros(im.shape[:2]), "raw") == pytest.approx(
         np.log2(d.AUTO_LEVEL["raw"] / np.percentile(d.luminance(im[..., :3]), d.AUTO_PERCENTILE)))
