@@ -13,7 +13,7 @@ import numpy as np
 from ..scene.blob import rotation_matrix
 from .cutter import _base_field_bound, _cutter
 from .field import _Field, _grid_for, iso_u
-from .params import (CUTTER, EROSION, KERNEL, THRESHOLD, _check_args,
+from .params import (CUTTER, EROSION, FADE, FADE_WEIGHT, KERNEL, THRESHOLD, _check_args,
                      _check_params)
 from .puffs import _Level, _exposed_area, _level, _puff_level
 from .shapes import _body_cumulonimbus, _body_cumulus, _body_stratocumulus, _body_tower, _default_body
@@ -25,7 +25,8 @@ class Cloud:
 
     balls : (N, 10) float64, read-only: x, y, z, rx, ry, rz, ax, ay, az, weight (ellipsoids, radii along the
         columns of Q = Rz(az) Ry(ay) Rx(ax), angles in degrees): the rows of its balls file.
-    levels : (N,) int8: 0 the body, 1 .. the puff levels, -1 the base cutter, -2 the erosion balls.
+    levels : (N,) int8: 0 the body, 1 .. the puff levels, -1 the base cutter, -2 the erosion balls,
+        -3 the base fade.
     kind, seed, size : the arguments of ``generate``; params : every kind parameter, defaults resolved.
     medium : the suggested medium settings (kernel, threshold, density, albedo, phase), scene-file keys.
     base : z of the flat base (the condensation level): F < T everywhere below it.
@@ -73,7 +74,8 @@ def generate(kind, balls=3000, seed=1, size=10.0, **params):
     n_balls, seed, size = _check_args(kind, balls, seed, size)
     p = _check_params(kind, params)
     rng = np.random.default_rng(seed)
-    n_special = 1                                             # the cutter
+    fade = p["base_fade"] > 0 and n_balls >= 200
+    n_special = 1 + fade                                      # the cutter and the base-fade ball
     n_erosion = int(round(p["erosion"] * n_balls)) if n_balls >= 200 else 0
     n_free = n_balls - n_special - n_erosion
     n0 = p["body"] if p["body"] is not None else _default_body(kind, p, n_free)
@@ -95,6 +97,7 @@ def generate(kind, balls=3000, seed=1, size=10.0, **params):
     flat = p["flatness"] if kind == "stratocumulus" else 1.0
     ratio = p["ratio"]
     spacing = p["spacing"]
+    spread = (p["size_spread"], p["size_power"]) if p["size_spread"] > 1.0 else None
     budget = n_free - n0
     erosion = None
     plan = []
@@ -114,22 +117,28 @@ def generate(kind, balls=3000, seed=1, size=10.0, **params):
             ratio_here = float(np.clip(math.sqrt(area / (per * max(n_here, 1))) / (0.5 * r_parent), 0.15, 0.8))
         else:
             ratio_here = ratio
-        push = p["push"] if not last else 0.0
+        push = p["push"] if not last else 0.5 * p["push"]
         plan.append((n_here, round(ratio_here, 4)))
         if last and p["fray"] > 0 and n_here >= 4:
             n_fray = int(round(p["fray"] * n_here))
-            solid = _puff_level(rng, field, parent, n_here - n_fray, ratio_here, 1.0, p["bias"], 0.0, spacing, flat,
-                                choice=choice)
-            loose = _puff_level(rng, field, parent, n_fray, 0.8 * ratio_here, 0.75, p["bias"] + 0.3, 0.9, 0.0,
-                                flat, choice=choice)
+            solid = _puff_level(rng, field, parent, n_here - n_fray, ratio_here, 1.0, p["bias"], push, spacing, flat,
+                                choice=choice, spread=spread)
+            loose = _puff_level(rng, field, parent, n_fray, 0.8 * ratio_here, p["fray_weight"], p["bias"] + 0.3,
+                                (0.9, p["fray_reach"], 2.0), 0.0, flat, choice=choice, spread=spread)
             lev = _Level(np.concatenate([solid.c, loose.c]), np.concatenate([solid.r, loose.r]),
                          np.concatenate([solid.a, loose.a]), np.concatenate([solid.q, loose.q]))
         else:
             lev = _puff_level(rng, field, parent, n_here, ratio_here, 1.0, p["bias"], push, spacing, flat,
-                              choice=choice)
+                              choice=choice, spread=spread)
+            # how many puffs each one carries on the next level: half alike, half Pareto, so that a few
+            # puffs carry most of the finer levels and the depth of the hierarchy varies over the cloud,
+            # but none stays bare (a bare puff pushed out reads as a smooth bead); mean 1, as the level's
+            # count is planned on its exposed area
+            vigor = (1.0 - rng.uniform(0.0, 1.0, len(lev))) ** (-1.0 / p["depth_power"]) - 1.0
+            lev.w = 0.5 + 0.5 * vigor / max(float(vigor.mean()), 1e-12)
         if last and n_erosion:  # small negative balls in the crevices among the last puffs
             erosion = _puff_level(rng, field, parent, n_erosion, 1.1 * ratio_here, 1.0, p["bias"], -0.3,
-                                  0.0, flat, choice=choice)
+                                  0.0, flat, choice=choice, spread=spread)
             erosion.q[:] = -0.6
         if len(lev):
             levels.append(lev)
@@ -145,6 +154,16 @@ def generate(kind, balls=3000, seed=1, size=10.0, **params):
     q = np.concatenate([lv.q for lv in all_levels])
     tag = np.concatenate([np.full(len(lv), i, np.int8) for i, lv in enumerate(levels)]
                          + ([np.full(n_erosion, EROSION, np.int8)] if erosion is not None else []))
+    if fade:  # the base fade: a wide flat ball of negative weight centred on z = 0, as deep as the fade layer
+        positive = q > 0
+        top = float(np.max(c[positive, 2] + np.sqrt(iso_u(q[positive])) * r[positive, 2]))
+        reach = np.max(np.abs(c[positive, :2]) + r[positive, :2], axis=0)
+        c = np.concatenate([c, [[0.5 * (c[positive, 0].max() + c[positive, 0].min()),
+                                 0.5 * (c[positive, 1].max() + c[positive, 1].min()), 0.0]]])
+        r = np.concatenate([r, [[4.0 * reach[0], 4.0 * reach[1], p["base_fade"] * top]]])
+        a = np.concatenate([a, np.zeros((1, 3))])
+        q = np.concatenate([q, [FADE_WEIGHT]])
+        tag = np.concatenate([tag, [FADE]]).astype(np.int8)
     half = np.sqrt(np.einsum("nkj,nj->nk", rotation_matrix(a) ** 2, r ** 2))  # half-widths of the supports
     # measure the visible cloud; scale it so that its extent along x is 1, centred on x = y = 0
     everything = _Field()

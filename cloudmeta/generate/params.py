@@ -15,7 +15,9 @@ KERNEL = "wyvill6"
 #: weight of the base cutter, relative to T: large, so that its edge is sharp (docs/generate.md)
 CUTTER_WEIGHT = 1.0e4 * THRESHOLD
 #: level of the special balls in Cloud.levels
-CUTTER, EROSION = -1, -2
+CUTTER, EROSION, FADE = -1, -2, -3
+#: weight of the base-fade ball, relative to T (docs/generate.md, Flat base)
+FADE_WEIGHT = -1.0 * THRESHOLD
 
 @dataclass(frozen=True)
 class Parameter:
@@ -33,17 +35,32 @@ _COMMON = {
                                     "of puffs on puffs (fewer where balls runs out first)", 2, 8, True),
     "ratio": Parameter(0.55, "ratio", "radius of a puff / radius of its parent, for every level but the last "
                                      "(the last level's ratio follows from the balls left for it)", 0.2, 0.8),
-    "spacing": Parameter(2.2, "ratio", "least distance between the centres of two puffs of a level / their "
+    "spacing": Parameter(3.2, "ratio", "least distance between the centres of two puffs of a level / their "
                                        "visible radius (blue noise; 2 just touching, smaller overlapping)",
                          0.5, 4.0),
-    "push": Parameter(0.8, "ratio", "how far each puff but the last level's stands out of the surface it "
+    "push": Parameter(1.7, "ratio", "how far each puff but the last level's stands out of the surface it "
                                     "sits on, in its own visible radii (0: centred on the surface)", -1.0, 2.0),
+    "size_spread": Parameter(4.0, "ratio", "largest / smallest puff of a level: their sizes follow a power law "
+                                           "over this range (1: all alike, +-15 %)", 1.0, 30.0),
+    "size_power": Parameter(2.0, "exponent", "a of the puff sizes' power law p(x) ~ x^-a within a level (larger: "
+                                             "more small puffs, fewer large ones)", 0.0, 4.0),
+    "depth_power": Parameter(4.0, "exponent", "Pareto exponent of how many puffs each puff carries on the next "
+                                              "level (small: a few puffs carry most of the finer levels, so the "
+                                              "depth of the hierarchy varies over the cloud; large: all alike)",
+                             1.02, 100.0),
+    "base_fade": Parameter(0.15, "ratio", "height of the layer above the base where the density thins towards "
+                                         "it / the cloud's height (one wide flat ball of weight -T; 0: none)",
+                           0.0, 0.6),
     "body": Parameter(None, "count", "balls of the body, level 0 (default: from the kind's shape)", 1, 4096, True),
     "aspect": Parameter(0.8, "ratio", "extent along y / extent along x", 0.1, 10.0),
     "bias": Parameter(0.6, "ratio", "upward bias of the puffs' directions (0: all directions alike; 1: "
                                     "mostly up)", -1.0, 5.0),
-    "fray": Parameter(0.25, "fraction", "part of the last level set loose as thin wisps just outside the "
+    "fray": Parameter(0.5, "fraction", "part of the last level set loose as thin wisps just outside the "
                                         "surface, at a lower weight", 0.0, 1.0),
+    "fray_weight": Parameter(1.0, "weight", "weight of the wisps (1: as dense as a puff; a lone ball of weight "
+                                             "<= T = 0.5 is never visible)", 0.55, 4.0),
+    "fray_reach": Parameter(4.0, "ratio", "farthest a wisp is set out of the surface, in its own visible radii "
+                                          "(from 0.9, most near 0.9: a power law)", 0.9, 10.0),
     "erosion": Parameter(0.02, "fraction", "part of the balls that are small negative balls carving dents "
                                            "between the puffs", 0.0, 0.3),
     "optical_depth": Parameter(60.0, "optical depth", "optical depth of the most opaque of five horizontal "
@@ -78,6 +95,11 @@ PARAMETERS = {
         "aspect": Parameter(0.6, "ratio", _COMMON["aspect"].doc, 0.1, 10.0),
         "bias": Parameter(1.2, "ratio", _COMMON["bias"].doc, -1.0, 5.0),
         "optical_depth": Parameter(80.0, "optical depth", _COMMON["optical_depth"].doc, 0.01, 1.0e4),
+        # a deck's cells are lumps, not cauliflowers: its puffs stay close to the surface, and it is too thin
+        # for a fade layer
+        **{name: Parameter(value, _COMMON[name].unit, _COMMON[name].doc, _COMMON[name].lo, _COMMON[name].hi)
+           for name, value in (("push", 0.8), ("spacing", 2.2), ("fray", 0.25), ("fray_weight", 0.75),
+                               ("fray_reach", 0.9), ("base_fade", 0.0))},
         "thickness": Parameter(0.12, "size", "thickness of the deck (its visible height) / size", 0.01, 1.0),
         "cells": Parameter(9, "count", "cells along x (along y: cells x aspect)", 1, 64, True),
         "coverage": Parameter(0.85, "fraction", "part of the cells present (the rest are the gaps, chosen by "

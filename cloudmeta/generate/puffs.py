@@ -65,13 +65,45 @@ def _surface_along(field, origin, d, t_start, t_stop, step):
     return t_cross, last
 
 
-def _spots(rng, field, parent, m, ratio, weight, bias, push=0.0, base_floor=0.0, jitter=0.15, choice=None):
+def _power_law(rng, m, spread, power):
+    """m factors from p(x) ~ x^-power on [1/sqrt(spread), sqrt(spread)], scaled so that the mean of x^2 is 1
+    (the puffs' mean area is the one a level's count was planned for)."""
+    lo, hi = 1.0 / math.sqrt(spread), math.sqrt(spread)
+    if spread <= 1.0:
+        return np.ones(m)
+    u = rng.uniform(0.0, 1.0, m)
+    if abs(power - 1.0) < 1e-9:
+        x = lo * (hi / lo) ** u
+        mean2 = (hi ** 2 - lo ** 2) / (2.0 * math.log(hi / lo))
+    else:
+        e = 1.0 - power
+        x = (lo ** e + u * (hi ** e - lo ** e)) ** (1.0 / e)
+        # E[x^2] = int x^(2 - power) / int x^-power over [lo, hi]
+        e3 = 3.0 - power
+        num = (hi ** e3 - lo ** e3) / e3 if abs(e3) > 1e-9 else math.log(hi / lo)
+        mean2 = num / ((hi ** e - lo ** e) / e)
+    return x / math.sqrt(mean2)
+
+
+def _pareto_range(rng, m, top, a):
+    """m draws from p(x) ~ x^-a on [1, top]."""
+    u = rng.uniform(0.0, 1.0, m)
+    if abs(a - 1.0) < 1e-9:
+        return top ** u
+    e = 1.0 - a
+    return (1.0 + u * (top ** e - 1.0)) ** (1.0 / e)
+
+
+def _spots(rng, field, parent, m, ratio, weight, bias, push=0.0, base_floor=0.0, jitter=0.15, choice=None,
+           spread=None):
     """m candidate puffs on the surface F = T of the levels in ``field``, each on the exposed part of a ball
     of ``parent`` (chosen at random, in proportion to ``choice`` where given): along a random direction
     d from the parent's centre (biased upwards by ``bias``), from the parent's own iso-surface outwards, at
     the point where the field of the levels so far falls to T, if it does within the parent's support
     (else the spot is buried under other balls). ``push`` moves the centre outwards along d by that many of
-    the puff's own iso-radii. Returns (centres, support radii, exposed: bool, parent indices)."""
+    the puff's own iso-radii. Sizes are ``ratio`` x the parent's, +-``jitter``, or with ``spread`` = (S, a)
+    ``ratio`` x the parents' mean times a factor from a power law p ~ x^-a over a range of S (_power_law). Returns (centres, support radii, exposed:
+    bool, parent indices)."""
     s_child = math.sqrt(float(iso_u(weight))) if weight > THRESHOLD else 0.5
     u_par = iso_u(parent.q)
     u_par = np.where(u_par > 0, u_par, 0.25)
@@ -85,13 +117,21 @@ def _spots(rng, field, parent, m, ratio, weight, bias, push=0.0, base_floor=0.0,
     if bias:
         d[:, 2] += bias
         d = _unit(d)
-    size = parent.r[pi].max(axis=1) * ratio * (1.0 + jitter * rng.uniform(-1, 1, m))
+    if spread is None:
+        size = parent.r[pi].max(axis=1) * ratio * (1.0 + jitter * rng.uniform(-1, 1, m))
+    else:
+        # relative to the parents' mean size, not each parent's own: the spread does not compound from
+        # level to level (the levels overlap in size instead, and the grids of cells stay fine)
+        size = float(np.mean(parent.r.max(axis=1))) * ratio * _power_law(rng, m, *spread)
     md = np.linalg.norm(np.einsum("mij,mj->mi", m_par[pi], d), axis=1)
     t_sup = 1.0 / md                                # the parent's support along d
     t_iso = np.sqrt(u_par[pi]) * t_sup              # its own iso-surface
     t_cross, _ = _surface_along(field, parent.c[pi], d, t_iso, t_sup, 0.6 * size)
     exposed = ~np.isnan(t_cross)
     t_cross = np.where(exposed, t_cross, t_iso)
+    if isinstance(push, tuple):  # (lo, hi, a): from lo to hi, most near lo (p ~ x^-a on 1 .. hi - lo + 1)
+        lo, hi, a = push
+        push = lo - 1.0 + _pareto_range(rng, m, hi - lo + 1.0, a)
     centre = parent.c[pi] + (np.maximum(t_cross, t_iso) + push * s_child * size)[:, None] * d
     exposed &= centre[:, 2] >= base_floor
     return centre, size, exposed, pi
@@ -190,9 +230,11 @@ _MAX_SPACED = 25000
 
 
 def _puff_level(rng, field, parent, n, ratio, weight, bias, push, spacing, flatness=1.0, jitter=0.15,
-                choice=None):
+                choice=None, spread=None):
     """Exactly n puffs of one level on the exposed surface of ``parent``'s balls, spaced (blue noise): no
-    two closer than ``spacing`` x their visible radius (spacing 0, or n > _MAX_SPACED: not spaced).
+    two closer than ``spacing`` x their visible radius (spacing 0, or n > _MAX_SPACED: not spaced). With a
+    ``spread`` of sizes the candidates are spaced by octave of size, largest first, so the small ones fill
+    the gaps between the large (a packing whose sizes follow the power law down to the smallest).
     Candidates are drawn in at most two rounds; where the exposed surface cannot hold n at that spacing,
     the remaining puffs go to the first of the rest (closer together)."""
     if n <= 0:
@@ -207,11 +249,17 @@ def _puff_level(rng, field, parent, n, ratio, weight, bias, push, spacing, flatn
         if need <= 0:
             break
         m = int((1.6 if spaced else 1.05) * need / max(rate, 0.05)) + 16
-        c, r, exposed, _ = _spots(rng, field, parent, m, ratio, weight, bias, push, jitter=jitter, choice=choice)
+        c, r, exposed, _ = _spots(rng, field, parent, m, ratio, weight, bias, push, jitter=jitter, choice=choice,
+                                  spread=spread)
         rate = max(np.count_nonzero(exposed) / m, 0.02)
         if spaced:
-            pts = np.concatenate([pts[kept], c[exposed], pts[~kept]])  # the kept ones keep their precedence
-            size = np.concatenate([size[kept], r[exposed], size[~kept]])
+            c, r = c[exposed], r[exposed]
+            if spread is not None:  # by octave of size, largest first (in random order within an octave:
+                # fully sorted, the spacing's rounds would follow long chains of neighbours)
+                order = np.argsort(np.floor(-np.log2(r / r.max())), kind="stable")
+                c, r = c[order], r[order]
+            pts = np.concatenate([pts[kept], c, pts[~kept]])  # the kept ones keep their precedence
+            size = np.concatenate([size[kept], r, size[~kept]])
             kept = _spaced(pts, 0.5 * spacing * s_child * size) if len(pts) else kept
         else:
             pts, size = np.concatenate([pts, c[exposed]]), np.concatenate([size, r[exposed]])

@@ -13,7 +13,7 @@ import pytest
 import cloudmeta as cm
 from cloudmeta.cli import main
 from cloudmeta.errors import InputError, OutputError
-from cloudmeta.generate import CUTTER, EROSION, KINDS, MARK, PARAMETERS, THRESHOLD, csv_text, iso_u
+from cloudmeta.generate import CUTTER, EROSION, FADE, KINDS, MARK, PARAMETERS, THRESHOLD, csv_text, iso_u
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
@@ -125,7 +125,8 @@ def test_puffs_on_puffs():
     assert all(a < b for a, b in zip(counts[1:], counts[2:])), counts
     assert counts[0] <= 20
     # the puffs sit on the surface: from (nearly) every puff's centre, one of 26 directions leaves the
-    # cloud within the puff's own radius (the last level) or 1.5 of it (a level that the next ones cover)
+    # cloud within the puff's own radius (the last level: 90 %, its smallest puffs fill the gaps between its
+    # largest) or 1.5 of it (a level that the next ones cover)
     probe = np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), -1).reshape(-1, 3)
     probe = probe[np.any(probe != 0, axis=1)]
     probe = probe / np.linalg.norm(probe, axis=1)[:, None]
@@ -137,11 +138,34 @@ def test_puffs_on_puffs():
         return (cloud.field(pts).reshape(len(rows), -1) < THRESHOLD).any(axis=1)
     for k in levels[1:-1]:
         assert reaches_out(cloud.balls[cloud.levels == k], 1.5).mean() > 0.85, k
-    assert reaches_out(cloud.balls[cloud.levels == levels[-1]], 1.0).mean() > 0.95
+    assert reaches_out(cloud.balls[cloud.levels == levels[-1]], 1.0).mean() > 0.9
     # the suggested density gives the target optical depth; negative balls are the cutter and erosion
     assert set(np.flatnonzero(cloud.balls[:, 9] < 0)) == set(np.flatnonzero(cloud.levels < 0))
     assert np.count_nonzero(cloud.levels == EROSION) == round(0.02 * 3000)
     assert cloud.medium["density"]["mode"] == "excess" and cloud.medium["density"]["scale"] > 0
+
+
+def test_sizes_spread_and_the_base_fades():
+    """The puffs' sizes spread over a power law (far wider than with size_spread=1), and the base-fade ball
+    thins the density towards the base: F lower near z = 0 than without it, the same higher up."""
+    def spread(cloud):
+        keep = (cloud.levels > 0) & (cloud.balls[:, 9] > THRESHOLD)
+        r = cloud.balls[keep, 3:6].max(axis=1)
+        lo, hi = np.percentile(r, [5, 95])
+        return hi / lo
+    cloud = cm.generate("cumulus", balls=3000, seed=2)
+    alike = cm.generate("cumulus", balls=3000, seed=2, size_spread=1.0, depth_power=100.0)
+    assert spread(cloud) > 1.3 * spread(alike)
+    fade = cloud.balls[cloud.levels == FADE]
+    assert len(fade) == 1 and fade[0, 9] == -THRESHOLD and fade[0, 2] == 0.0
+    assert fade[0, 5] == pytest.approx(0.15 * cloud.extent[1][2], rel=0.3)  # 0.15 of the height, roughly
+    bare = cm.generate("cumulus", balls=3000, seed=2, base_fade=0.0)
+    assert not np.any(bare.levels == FADE) and len(bare) == 3000
+    # the fade ball's own field: -T at the base, 0 above its layer
+    low = np.array([[0.0, 0.0, 0.01 * fade[0, 5]]])
+    high = np.array([[0.0, 0.0, 1.01 * fade[0, 5]]])
+    one = cm.Blob(fade[:, :3], fade[:, 3:6], fade[:, 9])
+    assert cm.field(one, low)[0] == pytest.approx(-THRESHOLD, rel=1e-3) and cm.field(one, high)[0] == 0.0
 
 
 def test_parameters_change_the_cloud():
