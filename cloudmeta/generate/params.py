@@ -61,7 +61,7 @@ _COMMON = {
                                              "<= T = 0.5 is never visible)", 0.55, 4.0),
     "fray_reach": Parameter(4.0, "ratio", "farthest a wisp is set out of the surface, in its own visible radii "
                                           "(from 0.9, most near 0.9: a power law)", 0.9, 10.0),
-    "erosion": Parameter(0.02, "fraction", "part of the balls that are small negative balls carving dents "
+    "erosion": Parameter(0.08, "fraction", "part of the balls that are small negative balls carving dents "
                                            "between the puffs", 0.0, 0.3),
     "optical_depth": Parameter(60.0, "optical depth", "optical depth of the most opaque of five horizontal "
                                                       "rays along x through the cloud's middle (at 0.2 .. 0.8 "
@@ -99,7 +99,7 @@ PARAMETERS = {
         # for a fade layer
         **{name: Parameter(value, _COMMON[name].unit, _COMMON[name].doc, _COMMON[name].lo, _COMMON[name].hi)
            for name, value in (("push", 0.8), ("spacing", 2.2), ("fray", 0.25), ("fray_weight", 0.75),
-                               ("fray_reach", 0.9), ("base_fade", 0.0))},
+                               ("fray_reach", 0.9), ("base_fade", 0.0), ("erosion", 0.02))},
         "thickness": Parameter(0.12, "size", "thickness of the deck (its visible height) / size", 0.01, 1.0),
         "cells": Parameter(9, "count", "cells along x (along y: cells x aspect)", 1, 64, True),
         "coverage": Parameter(0.85, "fraction", "part of the cells present (the rest are the gaps, chosen by "

@@ -141,7 +141,7 @@ def test_puffs_on_puffs():
     assert reaches_out(cloud.balls[cloud.levels == levels[-1]], 1.0).mean() > 0.9
     # the suggested density gives the target optical depth; negative balls are the cutter and erosion
     assert set(np.flatnonzero(cloud.balls[:, 9] < 0)) == set(np.flatnonzero(cloud.levels < 0))
-    assert np.count_nonzero(cloud.levels == EROSION) == round(0.02 * 3000)
+    assert np.count_nonzero(cloud.levels == EROSION) == round(PARAMETERS["cumulus"]["erosion"].default * 3000)
     assert cloud.medium["density"]["mode"] == "excess" and cloud.medium["density"]["scale"] > 0
 
 
