@@ -32,6 +32,7 @@ from ..errors import InputError
 
 RADIUS_FACTORS = (1.4, 1.6, 1.9)   #: candidate radii of the coarse lattice, in lattice steps
 FIRST_SHARE = 1 / 3               #: share of the ball budget that the first lattice may take
+STALL = 2e-4                      #: the solver stops once ten iterations gain less than this share
 THRESHOLD_RATIO = 1.000001e-6       #: T / largest weight: just above the least the loader allows (|q| <= 10^6 T)
 
 
@@ -94,6 +95,9 @@ class _Problem:
         ax = [np.arange(-r, r + 2) for r in reach]
         ox, oy, oz = np.meshgrid(*ax, indexing="ij")
         offs = np.stack([ox.ravel(), oy.ravel(), oz.ravel()], axis=1)
+        # only offsets that some centre in its voxel cell [0, 1)^3 can reach
+        gap = np.maximum(np.maximum(-offs, offs - 1), 0) * h
+        offs = offs[np.einsum("kc,kc->k", gap, gap) < radius ** 2]
         n = len(centers)
         cols, rows, vals = [], [], []
         idx = (centers - self.lower) / h - 0.5          # continuous voxel index of each centre
@@ -124,7 +128,7 @@ class _Problem:
         vidx = [np.minimum(((np.arange(s) + 0.5) * self.h[a] // step[a]).astype(np.int64), counts[a] - 1)
                 for a, s in enumerate(self.shape)]
         key = (vidx[0][:, None, None] * counts[1] + vidx[1][None, :, None]) * counts[2] + vidx[2][None, None, :]
-        return counts, key.ravel(), step
+        return counts, key.ravel().astype(np.int32 if counts.prod() < 2 ** 31 else np.int64), step
 
     def lattice(self, spacing):
         """(centres, block keys, largest step) of the lattice of ``spacing`` at the middle of each block of
@@ -134,9 +138,11 @@ class _Problem:
         bi = np.stack(np.unravel_index(keys, tuple(counts)), axis=1)
         return self.lower + (bi + 0.5) * step, keys, float(step.max())
 
-def _fista(A, y, w0, iterations, tol=1e-5):
+def _fista(A, y, w0, iterations, tol=STALL):
     """min 0.5 |A w - y|^2, w >= 0: accelerated projected gradient on unit-norm columns, with adaptive
-    restart (O'Donoghue & Candes 2015). Returns w."""
+    restart (O'Donoghue & Candes 2015), in single precision (half the memory traffic of the matrix-vector
+    products, which take the time; the weights need no more). Stops after ``iterations`` or once ten
+    iterations lower the squared residual by less than ``tol`` of it. Returns w (float64)."""
     # only the voxels that some ball reaches take part (the others add a constant to the residual)
     used = np.zeros(A.shape[0], dtype=bool)
     used[A.indices] = True
@@ -146,12 +152,13 @@ def _fista(A, y, w0, iterations, tol=1e-5):
     y = y[rows]
     norms = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
     norms[norms == 0] = 1.0
-    B = (A @ sp.diags(1.0 / norms)).tocsc()
+    B = (A @ sp.diags(1.0 / norms)).tocsc().astype(np.float32)
     Bt = B.T.tocsr()
-    # Lipschitz constant |B|^2 by power iteration (a 5 % margin over its estimate)
-    v = np.ones(B.shape[1]) / math.sqrt(B.shape[1])
+    y = y.astype(np.float32)
+    # Lipschitz constant |B|^2 by power iteration (a 10 % margin over its estimate)
+    v = np.full(B.shape[1], 1.0 / math.sqrt(B.shape[1]), dtype=np.float32)
     lam = 1.0
-    for _ in range(30):
+    for _ in range(15):   # the Perron vector of a non-negative Gram matrix is near uniform: few steps
         z = Bt @ (B @ v)
         lam_new = float(np.linalg.norm(z))
         v = z / lam_new
@@ -159,8 +166,9 @@ def _fista(A, y, w0, iterations, tol=1e-5):
             lam = lam_new
             break
         lam = lam_new
-    step = 1.0 / (1.05 * lam)
-    x = np.maximum(w0 * norms, 0.0)
+    step = 1.0 / (1.1 * lam)
+    x = np.maximum(w0 * norms, 0.0).astype(np.float32)
+    step = np.float32(step)
     z, t = x.copy(), 1.0
     f_old = np.inf
     for it in range(iterations):
@@ -172,15 +180,14 @@ def _fista(A, y, w0, iterations, tol=1e-5):
             t_new = 1.0
             z = x_new.copy()
         else:
-            z = x_new + ((t - 1.0) / t_new) * (x_new - x)
-        dx = np.linalg.norm(x_new - x)
+            z = x_new + np.float32((t - 1.0) / t_new) * (x_new - x)
         x, t = x_new, t_new
         if it % 10 == 9:
-            f = float(np.dot(r, r))
-            if f_old - f < tol * f_old and dx < tol * (np.linalg.norm(x) + 1e-300):
+            f = float(np.dot(r.astype(np.float64), r))
+            if f_old - f < tol * f_old:
                 break
             f_old = f
-    return x / norms
+    return x.astype(np.float64) / norms
 
 
 def _progress(total, show):
@@ -188,6 +195,37 @@ def _progress(total, show):
         return None
     from tqdm import tqdm
     return tqdm(total=total, unit="ball", desc="fit", leave=False)
+
+
+def _quasi_interpolant(A, y):
+    """Weights q_j = (a_j . y) / (a_j . A 1): each ball takes the kernel-weighted mean of the grid over its
+    support, divided by how many balls cover it there (Shepard's normalisation): a start near the solution
+    for a lattice, so that the solver needs fewer iterations."""
+    cover = A @ np.ones(A.shape[1])
+    den = A.T @ cover
+    return np.where(den > 0, (A.T @ y) / np.maximum(den, 1e-300), 0.0)
+
+
+def _radius_factor(P, centers, step, iterations):
+    """The radius of the first lattice, in lattice steps: of RADIUS_FACTORS, the one whose short solve
+    leaves the least residual, tried on the middle eighth of the box where the grid is large (the lattice
+    is the same there; the time an eighth)."""
+    sub, c = P, centers
+    if (P.shape >= 32).all():
+        lo_i, hi_i = P.shape // 4, P.shape - P.shape // 4
+        lower, upper = P.lower + lo_i * P.h, P.lower + hi_i * P.h
+        inner = ((centers > lower) & (centers < upper)).all(axis=1)
+        y = P.y[lo_i[0]:hi_i[0], lo_i[1]:hi_i[1], lo_i[2]:hi_i[2]]
+        if inner.sum() >= 8 and (y > 0).any():
+            sub, c = _Problem(y, lower, upper), centers[inner]
+    best = None
+    for f in RADIUS_FACTORS:
+        A = sub.columns(c, f * step)
+        w = _fista(A, sub.yflat, _quasi_interpolant(A, sub.yflat), iterations)
+        res = float(np.linalg.norm(A @ w - sub.yflat))
+        if best is None or res < best[0] * (1 - 1e-9):
+            best = (res, f)
+    return best[1]
 
 
 def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200, progress=None,
@@ -217,17 +255,10 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
             break
         spacing, centers, step = spacing / 1.1, c2, s2
 
-    # the first lattice's radius: the best of a few factors, by the residual of a short solve
-    best = None
-    for f in RADIUS_FACTORS:
-        A = P.columns(centers, f * step)
-        w = _fista(A, P.yflat, np.zeros(len(centers)), iterations // 4)
-        res = float(np.linalg.norm(A @ w - P.yflat))
-        if best is None or res < best[0] - 1e-12 * P.ynorm:
-            best = (res, f, A, w)
-    _, factor, A, w = best
+    factor = _radius_factor(P, centers, step, iterations // 3)
     radii = np.full(len(centers), factor * step)
-    w = _fista(A, P.yflat, w, iterations)
+    A = P.columns(centers, factor * step)
+    w = _fista(A, P.yflat, _quasi_interpolant(A, P.yflat), iterations)
 
     def prune(centers, radii, w, A):
         keep = w > 0
@@ -247,7 +278,7 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
         levels.append([s, counts, key, np.unique(key[P.yflat > 0]), st])
         s /= 2
     for _ in range(max_rounds):
-        if len(w) >= budget or not levels:
+        if len(w) >= 0.98 * budget or not levels:  # the last 2 % would cost rounds of little gain
             break
         if error is not None:
             e = err if error_check is None else error_check(
@@ -288,7 +319,7 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
         centers = np.concatenate([centers, new_c])
         radii = np.concatenate([radii, new_r])
         A = sp.hstack([A] + cols, format="csc")
-        w = _fista(A, P.yflat, np.concatenate([w, np.zeros(len(new_c))]), iterations)
+        w = _fista(A, P.yflat, np.concatenate([w, np.zeros(len(new_c))]), iterations // 2)
         centers, radii, w, A = prune(centers, radii, w, A)
         if len(w) > budget:  # the smallest contributions (weight x column norm) go, the rest re-solved
             contrib = w * np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
@@ -305,6 +336,9 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
             bar.refresh()
     if bar is not None:
         bar.close()
+    w = _fista(A, P.yflat, w, iterations)   # a last, longer solve of the final set
+    centers, radii, w, A = prune(centers, radii, w, A)
+    err = float(np.linalg.norm(A @ w - P.yflat) / P.ynorm)
     return _result(centers, radii, w, P, err, rounds, start, cpu0, factor)
 
 
