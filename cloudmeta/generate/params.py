@@ -80,6 +80,16 @@ _BODY = {
     "body_cover": Parameter(1.0, "ratio", "how far apart the body's balls are: no ball's centre inside this "
                                           "times another's visible radius", 0.3, 3.0),
 }
+
+
+def _defaults(**values):
+    """Common parameters with other defaults, for one kind."""
+    return {name: Parameter(value, _COMMON[name].unit, _COMMON[name].doc, _COMMON[name].lo, _COMMON[name].hi,
+                            _COMMON[name].integer) for name, value in values.items()}
+
+
+#: a tall column of puffs as loose as the cumulus's reads as a foam: its puffs stay closer together
+_COLUMN = _defaults(push=1.2, spacing=2.6, fray=0.35, erosion=0.04)
 #: per kind: its own parameters and its defaults of the common ones (units: "size" is a multiple of size)
 PARAMETERS = {
     "cumulus": {
@@ -97,9 +107,7 @@ PARAMETERS = {
         "optical_depth": Parameter(80.0, "optical depth", _COMMON["optical_depth"].doc, 0.01, 1.0e4),
         # a deck's cells are lumps, not cauliflowers: its puffs stay close to the surface, and it is too thin
         # for a fade layer
-        **{name: Parameter(value, _COMMON[name].unit, _COMMON[name].doc, _COMMON[name].lo, _COMMON[name].hi)
-           for name, value in (("push", 0.8), ("spacing", 2.2), ("fray", 0.25), ("fray_weight", 0.75),
-                               ("fray_reach", 0.9), ("base_fade", 0.0), ("erosion", 0.02))},
+        **_defaults(push=0.8, spacing=2.2, fray=0.25, fray_weight=0.75, fray_reach=0.9, base_fade=0.0, erosion=0.02),
         "thickness": Parameter(0.12, "size", "thickness of the deck (its visible height) / size", 0.01, 1.0),
         "cells": Parameter(9, "count", "cells along x (along y: cells x aspect)", 1, 64, True),
         "coverage": Parameter(0.85, "fraction", "part of the cells present (the rest are the gaps, chosen by "
@@ -108,6 +116,7 @@ PARAMETERS = {
     },
     "tower": {
         **_COMMON,
+        **_COLUMN,
         "height_ratio": Parameter(1.6, "size", "visible height of the tower / size (its width)", 0.3, 6.0),
         "squareness": Parameter(2.6, "exponent", _SQUARENESS, 1.5, 8.0),
         "lean": Parameter(0.12, "ratio", "horizontal shift of the top along x / height (wind shear)", -1.0, 1.0),
@@ -116,6 +125,7 @@ PARAMETERS = {
     },
     "cumulonimbus": {
         **_COMMON,
+        **_COLUMN,
         "height_ratio": Parameter(1.0, "size", "visible height (the anvil's top) / size (the anvil's width)",
                                   0.3, 6.0),
         "squareness": Parameter(2.6, "exponent", _SQUARENESS, 1.5, 8.0),
