@@ -101,7 +101,7 @@ def _spots(rng, field, parent, m, ratio, weight, bias, push=0.0, base_floor=0.0,
     d from the parent's centre (biased upwards by ``bias``), from the parent's own iso-surface outwards, at
     the point where the field of the levels so far falls to T, if it does within the parent's support
     (else the spot is buried under other balls). ``push`` moves the centre outwards along d by that many of
-    the puff's own iso-radii. Sizes are ``ratio`` x the parent's, +-``jitter``, or with ``spread`` = (S, a)
+    the puff's own iso-radii (a tuple (lo, hi, a): drawn per puff from lo to hi, a power law of exponent a). Sizes are ``ratio`` x the parent's, +-``jitter``, or with ``spread`` = (S, a)
     ``ratio`` x the parents' mean times a factor from a power law p ~ x^-a over a range of S (_power_law). Returns (centres, support radii, exposed:
     bool, parent indices)."""
     s_child = math.sqrt(float(iso_u(weight))) if weight > THRESHOLD else 0.5
