@@ -89,7 +89,7 @@ class _Problem:
         self.occupied = self.y > 0
 
     def columns(self, centers, radius):
-        """CSC matrix (voxels x balls) of k(|x_v - c|^2 / R^2) at the voxel centres x_v, one radius."""
+        """CSC matrix (voxels x balls, float32) of k(|x_v - c|^2 / R^2) at the voxel centres x_v, one radius."""
         h = self.h
         reach = np.ceil(radius / h).astype(np.int64)
         ax = [np.arange(-r, r + 2) for r in reach]
@@ -111,14 +111,16 @@ class _Problem:
             ok = (u < 1.0) & (b >= 0).all(axis=2) & (b[..., 0] < nx) & (b[..., 1] < ny) & (b[..., 2] < nz)
             m_i, k_i = np.nonzero(ok)
             bb = b[m_i, k_i]
-            rows.append((bb[:, 0] * ny + bb[:, 1]) * nz + bb[:, 2])
+            rows.append(((bb[:, 0] * ny + bb[:, 1]) * nz + bb[:, 2]).astype(np.int32))
             cols.append(m_i + s)
             uu = u[m_i, k_i]
-            vals.append((1.0 - uu) ** 2 * (1.0 - 4.0 * uu / 9.0))
-        rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+            vals.append(((1.0 - uu) ** 2 * (1.0 - 4.0 * uu / 9.0)).astype(np.float32))
+        rows = np.concatenate(rows) if rows else np.zeros(0, np.int32)
         cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
-        vals = np.concatenate(vals) if vals else np.zeros(0)
-        return sp.csc_matrix((vals, (rows, cols)), shape=(int(np.prod(self.shape)), n))
+        vals = np.concatenate(vals) if vals else np.zeros(0, np.float32)
+        # np.nonzero keeps the balls in order and, within one, the voxels ascending: CSC as it stands
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))]).astype(np.int64)
+        return sp.csc_matrix((vals, rows, indptr), shape=(int(np.prod(self.shape)), n))
 
     def blocks(self, spacing):
         """The lattice of ``spacing`` (physical; stretched per axis to fill the box): (counts per axis, the
@@ -147,7 +149,7 @@ def _fista(A, y, w0, iterations, tol=STALL):
     used = np.zeros(A.shape[0], dtype=bool)
     used[A.indices] = True
     rows = np.flatnonzero(used)
-    lookup = np.cumsum(used) - 1
+    lookup = (np.cumsum(used) - 1).astype(np.int32)
     A = sp.csc_matrix((A.data, lookup[A.indices], A.indptr), shape=(len(rows), A.shape[1]))
     y = y[rows]
     norms = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
@@ -321,12 +323,6 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
         A = sp.hstack([A] + cols, format="csc")
         w = _fista(A, P.yflat, np.concatenate([w, np.zeros(len(new_c))]), iterations // 2)
         centers, radii, w, A = prune(centers, radii, w, A)
-        if len(w) > budget:  # the smallest contributions (weight x column norm) go, the rest re-solved
-            contrib = w * np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
-            top = np.sort(np.lexsort((np.arange(len(w)), -contrib))[:budget])
-            centers, radii, w, A = centers[top], radii[top], w[top], A[:, top]
-            w = _fista(A, P.yflat, w, iterations // 2)
-            centers, radii, w, A = prune(centers, radii, w, A)
         err_old, err = err, float(np.linalg.norm(A @ w - P.yflat) / P.ynorm)
         rounds.append({"balls": int(len(w)), "spacing": float(radii.min() / factor), "density_error": err})
         if err > (1.0 - 1e-3) * err_old:  # the candidates left no longer help

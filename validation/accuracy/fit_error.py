@@ -7,6 +7,7 @@ other processes on a shared machine do not inflate) and wall time.
     python -m validation.accuracy.fit_error                         # 128^3, 10^3 and 10^4 balls
     python -m validation.accuracy.fit_error --balls 1000 10000 20000 100000
     python -m validation.accuracy.fit_error --size 256 --balls 100000
+    python -m validation.accuracy.fit_error --octaves 7                # noise down to the voxel
 """
 from __future__ import annotations
 
@@ -25,13 +26,16 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=128, help="voxels a side (default 128)")
     ap.add_argument("--balls", type=int, nargs="+", default=[1000, 10000])
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--octaves", type=int, default=5, help="noise octaves from 4 cells a side (default 5: the "
+                                                           "finest 2 voxels wide at 128^3; 7: down to the voxel)")
     ap.add_argument("--rays", type=int, default=RAYS)
     args = ap.parse_args(argv)
     n = args.size
     t0 = time.process_time()
-    density, lower, upper = noise_cloud((n, n, n), seed=args.seed, coverage=0.7, peak=20.0, size=1.0)
+    density, lower, upper = noise_cloud((n, n, n), seed=args.seed, octaves=args.octaves, coverage=0.7,
+                                          peak=20.0, size=1.0)
     print(f"cloud: {n}^3 voxels, {int((density > 0).sum()):,} occupied ({100 * (density > 0).mean():.1f} %), "
-          f"seed {args.seed}, made in {time.process_time() - t0:.1f} s CPU")
+          f"{args.octaves} octaves, seed {args.seed}, made in {time.process_time() - t0:.1f} s CPU")
     print("| balls asked | balls | density L2 error | optical-depth rel. RMSE "
           f"({args.rays:,} rays) | fit CPU s | fit wall s | errors CPU s |")
     print("|---|---|---|---|---|---|---|")
