@@ -57,6 +57,18 @@ SLICE_EMPTY_OPACITY = 0.25
 #: colours of the media's isosurfaces F = T, in scene order (a surface is drawn in its own colour)
 ISO_COLOURS = ((0.55, 0.8, 1.0), (1.0, 0.6, 0.85), (0.7, 1.0, 0.6), (1.0, 0.95, 0.55))
 SCREENSHOT_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+#: ``--balls``: how the ball centres are drawn. ``auto`` draws them all as round sprites up to BALLS_AS_SPRITES
+#: balls and as ``points`` above: small flat dots, at most POINTS_MAX of them (every k-th ball), half
+#: transparent, so that thousands of centres do not hide the density slices they stand in
+BALL_MODES = ("auto", "all", "points", "none")
+BALLS_AS_SPRITES = 500
+POINTS_MAX = 2000
+POINT_SIZE, POINT_OPACITY = 2.0, 0.5
+#: with many balls the isosurface F = T is a crumpled envelope: drawn fainter, so the slices show through
+ISO_OPACITY_MANY = 0.15
+#: the grid | fit | difference view: picture size and the diverging colour map of the difference
+COMPARE_WINDOW = (1800, 680)
+DIFF_CMAP = "RdBu_r"
 
 
 # ------------------------------------------------------------------------------------------- sampling
@@ -322,11 +334,50 @@ def _fit_view(plotter, points, towards_viewer, up, fill=VIEW_FILL):
     plotter.reset_camera_clipping_range()
 
 
-def draw_volume(plotter, scene, grid, widgets):
-    """Slices of sigma_t (with slice widgets when ``widgets``), each blob's F = T, the ball centres, the
-    camera frustum and the lights, on ``plotter``."""
+def _ball_mode(scene, balls):
+    """(mode, ball count) with ``auto`` resolved: ``all`` up to BALLS_AS_SPRITES balls, else ``points``."""
+    if balls not in BALL_MODES:
+        raise InputError(f"--balls: expected one of {', '.join(BALL_MODES)}, got {balls!r}")
+    count = sum(len(blob.weights) for _, blob, _ in field_names(scene))
+    if balls == "auto":
+        balls = "all" if count <= BALLS_AS_SPRITES else "points"
+    return balls, count
+
+
+def _draw_centres(plotter, blob, mode, labels):
+    """The centres of ``blob`` (white; carving balls red): every one as a round sprite (``all``), or at
+    most POINTS_MAX of them as small translucent dots (``points``). Never a mesh per ball."""
     import pyvista as pv
 
+    n = len(blob.weights)
+    step = 1 if mode == "all" else max(1, -(-n // POINTS_MAX))
+    keep = np.zeros(n, dtype=bool)
+    keep[::step] = True
+    positive = blob.weights >= 0
+    for mask, colour, what in ((positive, "white", "ball centres"), (~positive, "red", "carving centres")):
+        mask = mask & keep
+        if not mask.any():
+            continue
+        label = what if step == 1 else f"{what} (1 in {step})"
+        points = pv.PolyData(np.ascontiguousarray(blob.centers[mask]))
+        if mode == "all":
+            style = dict(point_size=7, render_points_as_spheres=True)
+        else:
+            style = dict(point_size=POINT_SIZE, render_points_as_spheres=False, opacity=POINT_OPACITY)
+        plotter.add_mesh(points, color=colour, style="points", show_scalar_bar=False,
+                         label=None if label in labels else label, name=f"centres:{len(labels)}:{what}", **style)
+        labels.add(label)
+
+
+def draw_volume(plotter, scene, grid, widgets, balls="auto"):
+    """Slices of sigma_t (with slice widgets when ``widgets``), each blob's F = T, the ball centres, the
+    camera frustum and the lights, on ``plotter``. ``balls`` (BALL_MODES) says how the centres are drawn."""
+    import pyvista as pv
+
+    balls, count = _ball_mode(scene, balls)
+    many = count > BALLS_AS_SPRITES
+    if many:  # translucent slices, isosurfaces and dots drawn in depth order, not in the order added
+        plotter.enable_depth_peeling()
     scalars, title = _density_array(grid)
     clim = _scalar_range(grid.point_data[scalars])
     # where sigma_t = 0 the slices are almost clear, so that they do not hide the isosurfaces behind them
@@ -344,16 +395,10 @@ def draw_volume(plotter, scene, grid, widgets):
     for name, blob, label, colour, opacity in _things(scene):
         iso = _contour(grid, name, blob.threshold)
         if iso is not None:
-            plotter.add_mesh(iso, color=colour, opacity=opacity, smooth_shading=True, label=label,
-                             show_scalar_bar=False)
-        centres = pv.PolyData(np.array(blob.centers))
-        positive = blob.weights >= 0
-        for mask, colour_, what in ((positive, "white", "ball centres"), (~positive, "red", "carving centres")):
-            if mask.any():
-                plotter.add_mesh(centres.extract_points(mask, adjacent_cells=False), color=colour_, point_size=7,
-                                 render_points_as_spheres=True, show_scalar_bar=False,
-                                 label=None if what in centre_labels else what)
-                centre_labels.add(what)
+            plotter.add_mesh(iso, color=colour, opacity=min(opacity, ISO_OPACITY_MANY) if many else opacity,
+                             smooth_shading=True, label=label, show_scalar_bar=False)
+        if balls != "none":
+            _draw_centres(plotter, blob, balls, centre_labels)
 
     lo, hi = np.array(grid.bounds[0::2]), np.array(grid.bounds[1::2])
     centre, diagonal = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
@@ -437,6 +482,93 @@ def draw_slice(plotter, scene, axis, value, resolution):
     return plane
 
 
+# ------------------------------------------------------------------------------- grid | fit | difference
+
+def compare_slice(scene, voxels, axis=2, value=None):
+    """One layer of voxels of a ``VoxelGrid`` beside the scene's sigma_t at the same voxel centres.
+
+    ``axis`` 0, 1, 2 (x, y, z); ``value`` a coordinate in the grid's box (default its middle), which picks
+    the layer of voxels that holds it. The scene is sampled exactly at the layer's voxel centres (the culled
+    sampler, as ``sample_grid``), so the two are compared point by point, with no interpolation.
+
+    Returns a ``pyvista.ImageData`` one voxel thick with point arrays ``grid``, ``fit`` (the scene's total
+    sigma_t) and ``difference`` (fit - grid), and field data ``layer`` (the layer's index), ``error`` (the
+    slice's relative L2 error, |fit - grid| / |grid|, nan where the grid's slice is all zero) and
+    ``position`` (the layer centre's coordinate along ``axis``).
+    """
+    if not scene.media:
+        raise InputError("--grid: the scene has no medium, so it has no sigma_t to compare with the grid")
+    lower, upper, h, n = voxels.lower, voxels.upper, voxels.voxel, voxels.shape
+    if value is None:
+        value = 0.5 * (lower[axis] + upper[axis])
+    if not lower[axis] <= value <= upper[axis]:
+        raise InputError(f"--slice: {'xyz'[axis]}={value:g} is outside the grid {voxels.source}, whose "
+                         f"{'xyz'[axis]} runs from {lower[axis]:.4g} to {upper[axis]:.4g}")
+    layer = int(np.clip(np.floor((value - lower[axis]) / h[axis]), 0, n[axis] - 1))
+    origin = lower + 0.5 * h
+    origin[axis] = lower[axis] + (layer + 0.5) * h[axis]
+    dims = np.array(n, dtype=np.int64)
+    dims[axis] = 1
+    plane = _sample(scene, origin, h.astype(np.float64), dims)
+    fit = np.asarray(plane.point_data["sigma_t"], dtype=np.float64)
+    index = [slice(None)] * 3
+    index[axis] = slice(layer, layer + 1)
+    grid = voxels.density[tuple(index)].ravel(order="F")  # pyvista's order: x fastest
+    for name in list(plane.point_data.keys()):
+        del plane.point_data[name]
+    diff = fit - grid
+    plane.point_data["grid"] = grid
+    plane.point_data["fit"] = fit
+    plane.point_data["difference"] = diff
+    norm = float(np.linalg.norm(grid))
+    plane.field_data["error"] = [float(np.linalg.norm(diff)) / norm if norm > 0 else float("nan")]
+    plane.field_data["layer"] = [layer]
+    plane.field_data["position"] = [float(origin[axis])]
+    return plane
+
+
+def _panel_bar(title):
+    return dict(title=title, color="white", title_font_size=16, label_font_size=13, fmt="%.3g", n_labels=5,
+                vertical=False, position_x=0.15, position_y=0.01, height=0.12, width=0.7)
+
+
+def draw_compare(plotter, plane, axis, grid_label, fit_label):
+    """Three panels on a 1 x 3 ``plotter``: the grid's slice, the fit's, and fit - grid (a diverging map,
+    its range symmetric about 0), each seen straight along ``axis``, the same extent in each."""
+    grid, fit, diff = (plane.point_data[k] for k in ("grid", "fit", "difference"))
+    top = max(float(grid.max()), float(fit.max()))
+    top = top if top > 0 else 1.0
+    spread = float(np.abs(diff).max())
+    spread = spread if spread > 0 else top
+    error = float(plane.field_data["error"][0])
+    where = f"{'xyz'[axis]} = {float(plane.field_data['position'][0]):.4g}"
+    panels = (
+        ("grid", f"grid sigma_t [1/length]", CMAP, [0.0, top], f"grid: {grid_label}\n{where}"),
+        ("fit", f"fit sigma_t [1/length]", CMAP, [0.0, top], f"fit: {fit_label}\n{where}"),
+        ("difference", "fit - grid [1/length]", DIFF_CMAP, [-spread, spread],
+         f"fit - grid: slice relative L2 error {error:.4f}\n{where}"),
+    )
+    names = "xyz"
+    titles = {f"{c}title": f"{c} [length]" for c in names if c != names[axis]}
+    titles[f"show_{names[axis]}axis"] = False  # the plane is seen edge-on along its normal
+    for column, (array, bar, cmap, clim, text) in enumerate(panels):
+        plotter.subplot(0, column)
+        # unlit, so that the colours are the map's (the difference's 0 is white, not shaded grey)
+        plotter.add_mesh(plane.copy(), scalars=array, cmap=cmap, clim=clim, lighting=False,
+                         scalar_bar_args=_panel_bar(bar))
+        plotter.add_text(text, position="upper_edge", font_size=11, color="white")
+        plotter.show_bounds(bounds=plane.bounds, color="white", font_size=9, location="outer", **titles)
+        (plotter.view_yz, plotter.view_xz, plotter.view_xy)[axis]()
+        plotter.reset_camera()
+        plotter.camera.zoom(1.05)
+        # the plane a little above the panel's middle: clear of the colour bar below it
+        cam = plotter.camera
+        lift = -0.07 * float(np.ptp(np.array(plane.bounds).reshape(3, 2), axis=1).max()) * np.array(cam.up)
+        cam.position = tuple(np.array(cam.position) + lift)
+        cam.focal_point = tuple(np.array(cam.focal_point) + lift)
+    plotter.link_views()
+
+
 # -------------------------------------------------------------------------------------------- command
 
 def _check_output(option, path, suffixes):
@@ -454,11 +586,15 @@ def _describe_grid(grid):
 
 
 def inspect_command(args):
-    """``cloudmeta inspect SCENE [--screenshot PNG] [--save VTI] [--resolution N] [--slice AXIS=VALUE]``.
+    """``cloudmeta inspect SCENE [--screenshot PNG] [--save VTI] [--resolution N] [--slice AXIS=VALUE]
+    [--balls auto|all|points|none] [--grid GRID [--var NAME]]``.
 
     With --screenshot the picture is rendered off screen and written there (no window, no display needed).
     Without it a window opens; where there is no display, --save alone writes the grid and opens nothing.
     --slice samples its plane SLICE_REFINE times finer than --resolution asks for the 3D grid.
+    With --grid: three panels, a layer of the grid's voxels, the scene's sigma_t at the same voxel centres and
+    their difference (``compare_slice``); --slice picks the layer (default the middle of the box along z),
+    --save writes that layer's three arrays, and --resolution is not used.
     """
     import pyvista as pv
 
@@ -467,12 +603,19 @@ def inspect_command(args):
     screenshot = _check_output("--screenshot", args.screenshot, SCREENSHOT_SUFFIXES) if args.screenshot else None
     save = _check_output("--save", args.save, (".vti",)) if args.save else None
     plane = _parse_slice(args.slice) if args.slice is not None else None
+    balls = getattr(args, "balls", None) or "auto"
+    _ball_mode(scene, balls)
+    grid_path, variable = getattr(args, "grid", None), getattr(args, "var", None)
+    if variable is not None and grid_path is None:
+        raise InputError("--var: names a variable of --grid GRID, which is not given")
     window = screenshot is None
     if window and not _has_display():
         if save is None:
             raise InputError("there is no display to open a window on (DISPLAY is not set): give --screenshot "
                              "PATH.png to render off screen, or --save PATH.vti to write the grid")
         window = False
+    if grid_path is not None:
+        return _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, save, window)
 
     grid = None
     if plane is None or save is not None:
@@ -496,12 +639,57 @@ def inspect_command(args):
             print(f"cloudmeta: slice {'xyz'[axis]}={value:g}: {nx * ny * nz} samples, spacing "
                   f"{sampled.spacing[0]:.4g}")
         else:
-            draw_volume(plotter, scene, grid, widgets=screenshot is None)
+            draw_volume(plotter, scene, grid, widgets=screenshot is None, balls=balls)
         if screenshot is not None:
             plotter.screenshot(screenshot)
             print(f"cloudmeta: wrote {screenshot}")
         else:
             plotter.show(title=f"cloudmeta inspect {args.scene}")
+    finally:
+        plotter.close()
+    return 0
+
+
+def _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, save, window):
+    """``inspect SCENE --grid GRID``: the grid | fit | difference panels of one layer of voxels."""
+    import pyvista as pv
+
+    from ..fit import read_grid
+    from .io import same_file
+
+    for label, path in (("--screenshot", screenshot), ("--save", save)):
+        if path and same_file(os.path.abspath(path), os.path.abspath(grid_path)):
+            raise InputError(f"{label} {path}: is the grid --grid reads; refusing to overwrite it")
+    voxels = read_grid(grid_path, variable=variable)
+    axis, value = plane if plane is not None else (2, None)
+    compared = compare_slice(scene, voxels, axis, value)
+    error = float(compared.field_data["error"][0])
+    nx, ny, nz = voxels.shape
+    layer = int(compared.field_data["layer"][0])
+    print(f"cloudmeta: {grid_path} ({nx} x {ny} x {nz} voxels) against {args.scene}: layer {layer} of "
+          f"{voxels.shape[axis]} ({'xyz'[axis]} = {float(compared.field_data['position'][0]):.4g}), slice relative "
+          f"L2 error {error:.4f}")
+    if save is not None:
+        compared.save(save)
+        print(f"cloudmeta: wrote {save} (arrays: {', '.join(compared.point_data.keys())})")
+    if not window and screenshot is None:
+        return 0
+    if screenshot is not None:
+        _prepare_off_screen()
+    plotter = pv.Plotter(shape=(1, 3), off_screen=screenshot is not None, window_size=COMPARE_WINDOW,
+                         border=False)
+    count = sum(len(m.blob.weights) for m in scene.media)
+    grid_label = Path(grid_path).name + (f" ({voxels.variable})" if voxels.variable else "")
+    try:
+        for column in range(3):
+            plotter.subplot(0, column)
+            plotter.set_background((0.08, 0.09, 0.12), top=(0.30, 0.34, 0.42))
+        draw_compare(plotter, compared, axis, grid_label, f"{Path(args.scene).name} ({count:,} balls)")
+        if screenshot is not None:
+            plotter.screenshot(screenshot)
+            print(f"cloudmeta: wrote {screenshot}")
+        else:
+            plotter.show(title=f"cloudmeta inspect {args.scene} --grid {grid_path}")
     finally:
         plotter.close()
     return 0

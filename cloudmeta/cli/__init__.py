@@ -265,6 +265,12 @@ def build_parser():
     i.add_argument("--save", help="write the sampled grid to this .vti file (ParaView)")
     i.add_argument("--resolution", type=int, default=96, help="grid samples along the longest side (default 96)")
     i.add_argument("--slice", help="one plane only, e.g. z=2.0, coloured by sigma_t with the contour F = T")
+    i.add_argument("--balls", choices=("auto", "all", "points", "none"), default="auto",
+                   help="ball centres: all as dots, points (small, at most 2,000), none (default auto: all up to "
+                        "500 balls, else points)")
+    i.add_argument("--grid", help="a voxel grid (.vdb, .nc, .npz, .npy): show a slice of it, the same slice of the "
+                                  "scene's sigma_t and their difference side by side (docs/inspect.md)")
+    i.add_argument("--var", help="the grid's variable (NetCDF variable, VDB grid, npz array)")
     i.set_defaults(run=_inspect)
     g = sub.add_parser("generate", help="write a procedural cloud, deterministic by seed: a scene (YAML) and its "
                                         "balls file (CSV) beside it (docs/generate.md)")
