@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import CloudmetaError, InputError
 from ..kernels.lighting import (COUNT_EXACT, COUNT_FOLDS, COUNT_KRONROD, COUNT_LOOKUPS, COUNT_NODES, COUNT_SPLITS,
                                 COUNT_STEPS, COUNT_TRUSTED, N_COUNTS)
 from ..scene.model import Scene
@@ -149,7 +149,10 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
             raw = image.copy()
             raw[..., :3] += mean
             albedo, _ = aux_images(scene, packed, window)  # the normals: worse guides here (renderer.denoise)
-            mean = denoise_paths(denoiser, mean, albedo, None, image[..., 3])
+            try:
+                mean = denoise_paths(denoiser, mean, albedo, None, image[..., 3])
+            except Exception as exc:  # the library's own errors: one of cloudmeta's classes, one line
+                raise CloudmetaError(f"denoise: Intel Open Image Denoise failed: {type(exc).__name__}: {exc}") from exc
         image[..., :3] += mean
         if err is not None:
             err = np.sqrt(err * err + stderr * stderr)

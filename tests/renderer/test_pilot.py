@@ -277,7 +277,6 @@ def test_hybrid_calibration_that_turns_to_exact_rays_chooses_the_exact_level(mon
     by the error of lookups the frame refuses (every grid 'trusts too few' here: MIN_TRUSTED above 1). The frame then
     runs the kernel compiled for exact shadows: its records hold no maps (pack.without_maps)."""
     from cloudmeta.renderer import frame as frame_module
-from cloudmeta.renderer import calibrate as pilot
     monkeypatch.setattr(pilot, "MIN_TRUSTED", 1.01)
     maps = []
     original = frame_module.render_single
