@@ -378,3 +378,30 @@ def test_the_summary_says_what_is_known():
     got = line(approximate, estimated=3e-4, approximation=SimpleNamespace(rel_rmse=0.1234, stderr=0.01))
     assert ("approximate multiple scattering (grid), quality default: 2.35 s, estimated error 3.0e-04 (target "
             "1.0e-03), approximation error 0.123 +- 0.010 against multiple scattering; wrote c.exr") in got
+
+
+def test_every_error_class_is_exported_and_listed_in_the_docs():
+    import inspect
+
+    import cloudmeta
+    from cloudmeta import errors
+    classes = [name for name, c in inspect.getmembers(errors, inspect.isclass) if issubclass(c, errors.CloudmetaError)]
+    assert sorted(classes) == ["CloudmetaError", "InputError", "OutputError", "SceneError"]
+    text = (ROOT / "docs" / "errors.md").read_text()
+    for name in classes:
+        assert name in cloudmeta.__all__ and getattr(cloudmeta, name) is getattr(errors, name)
+        assert f"| `{name}` |" in text
+
+
+def test_errors_of_the_libraries_reach_the_user_as_cloudmetas(tmp_path, capsys):
+    """OpenEXR's and dask's own exceptions do not escape: read_exr of a missing file is an InputError, and a
+    scheduler address dask cannot use ends the command line with one line, exit 2."""
+    import cloudmeta
+    with pytest.raises(cloudmeta.InputError, match="missing.exr"):
+        cloudmeta.read_exr(tmp_path / "missing.exr")
+    pytest.importorskip("distributed")
+    assert main(["render", str(ROOT / "scenes" / "cumulus.yaml"), "--frames", "1", "-o",
+                 str(tmp_path / "c_{frame}.exr"), "--scheduler", "nosuchproto://nowhere:1", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("cloudmeta: error: scheduler nosuchproto://nowhere:1: cannot connect") and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
