@@ -80,7 +80,7 @@ class Preset:
     grid: tuple
 
 
-#: the presets (issue #23): each is a target of the image's RMSE over its mean scattered radiance
+#: the presets: each is a target of the image's RMSE over its mean scattered radiance
 #: (draft 3e-3, default 1e-3, fine 3e-4), with ``tolerance`` equal to the target (relative to the pilot's
 #: scattered-light scale). max_tau and cutoff were chosen as the cheapest on the 14 scenes of the accuracy
 #: suite that kept every scene at or below half its target (docs/error_estimate.md "Presets"); the six
