@@ -24,7 +24,7 @@ root_tolerance  1e-9    1e-9    1e-9    1e-9       root tolerance, relative to t
 growth          1       1       1       0          the step limits max_tau and max_length grow as
                                                    e^(growth u) with the view's optical depth u (not a key)
 (start)         1       0       -1      -          the calibration's first level on its ladder
-                                                   (renderer.calibrate: LADDER, START)
+                                                   (renderer.calibrate.LADDER)
 (grid)          24^3    40^3    56^3    56^3       the grid method's cells and photons
                 2^21    2^23    2^25    2^25       (renderer.fluence; ``render.grid`` overrides)
 =============== ======= ======= ======= ========== ====================================================
