@@ -89,6 +89,8 @@ def summary(shown, scene, result, took, paths):
     settings = result.settings
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
     what = [f"{w} x {h}" + (f", {spp} spp" if spp > 1 else ""), _scattering_words(scene.render)]
+    if getattr(result, "raw", None) is not None:
+        what.append("denoised")
     if settings.shadows != "exact":
         what.append(f"{settings.shadows} shadows")
     what.append(f"quality {settings.quality}")
@@ -100,7 +102,7 @@ def summary(shown, scene, result, took, paths):
     told = [_seconds(took)]
     if error is not None:
         told.append(f"estimated error {error:.1e}" + ("" if target is None else f" (target {target:.1e})"))
-    elif target is not None:
+    elif target is not None and scene.render.scattering != "multiple":  # (the paths' noise is not the preset's)
         told.append(f"target error {target:.1e} (not estimated; --error estimates it)")
     if result.approximation is not None:
         a = result.approximation

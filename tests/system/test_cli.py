@@ -374,6 +374,8 @@ def test_the_summary_says_what_is_known():
         scene.image, spp=4))
     assert line(reference, scattered=None) == ("cloudmeta: c.yaml 64 x 48, 4 spp, single scattering, hybrid "
                                                "shadows, quality reference: 2.35 s; wrote c.exr")
+    multiple = replace(scene, render=replace(scene.render, scattering="multiple"))
+    assert line(multiple, scattered=None).endswith("multiple scattering, quality default: 2.35 s; wrote c.exr")
     approximate = replace(scene, render=replace(scene.render, scattering="approximate", method="grid"))
     got = line(approximate, estimated=3e-4, approximation=SimpleNamespace(rel_rmse=0.1234, stderr=0.01))
     assert ("approximate multiple scattering (grid), quality default: 2.35 s, estimated error 3.0e-04 (target "
