@@ -354,7 +354,11 @@ def _dask_client(client, workers, scheduler):
         raise InputError("a cluster needs dask.distributed: pip install 'dask[distributed]' "
                          "(or cloudmeta's extra: pip install 'cloudmeta[cluster]')") from None
     if scheduler is not None:
-        with Client(scheduler) as c:
+        try:
+            c = Client(scheduler)
+        except Exception as exc:  # dask's own errors (an address it cannot parse or reach): one of cloudmeta's
+            raise InputError(f"scheduler {scheduler}: cannot connect: {type(exc).__name__}: {exc}") from exc
+        with c:
             yield c, None
         return
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:

@@ -296,7 +296,11 @@ def read_exr(path):
     Channels other than R, G, B, A follow in name order. ``header`` is the file's header dict.
     """
     import OpenEXR
-    with OpenEXR.File(str(path), separate_channels=True) as f:
+    try:
+        exr = OpenEXR.File(str(path), separate_channels=True)
+    except RuntimeError as exc:  # OpenEXR's one error class (a missing, unreadable or damaged file)
+        raise InputError(f"path {path}: cannot read it as OpenEXR: {' '.join(str(exc).split())}") from None
+    with exr as f:
         header = dict(f.header())  # a copy: File clears its own header dict when it closes
         channels = f.channels()
         order = [c for c in _CHANNELS if c in channels] + sorted(c for c in channels if c not in _CHANNELS)

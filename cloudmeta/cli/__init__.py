@@ -12,7 +12,7 @@ from pathlib import Path
 from ..errors import CloudmetaError, InputError, SceneError
 from ..fit import cli as fit_cli
 from ..api.runtime import INTERRUPTED, RENDERS, compile_notice, interruptible
-from ..scene.vocabulary import DISPLAYS, QUALITIES, QUALITY_TARGETS, SHADOW_MAP_RESOLUTION, SHADOW_MODES
+from ..scene.vocabulary import DISPLAYS, QUALITIES, SHADOW_MAP_RESOLUTION, SHADOW_MODES
 
 
 def _render(args):
@@ -21,7 +21,9 @@ def _render(args):
     for label, path in (("-o", args.output), ("--png", args.png)):
         if path is not None and not path:  # -o '' is no file: refused, not taken for "no -o" (SCENE.exr here)
             raise OutputError(f"{label}: expected a file name, got an empty path")
-    if any(v is not None for v in (args.frames, args.workers, args.scheduler, args.tiles)) or args.overwrite \
+    # the frames path is taken where the user asks for frames, tiles or a cluster, or the scene is animated;
+    # --overwrite means the same in both (replace what exists) and chooses neither
+    if any(v is not None for v in (args.frames, args.workers, args.scheduler, args.tiles)) \
             or load_animation(args.scene) is not None:
         if args.error:
             raise InputError("--error: only for a single image, not with --frames, --tiles, --workers, "
@@ -45,55 +47,109 @@ def _render(args):
         require_denoiser(scene)  # before any work: the mode and the optional extra
     outputs = _outputs(args, scene)
     for label, path, ext in outputs:
-        check_output_path(path, ext, label, scene.inputs)
+        check_output_path(path, ext, label, scene.inputs)  # an existing file is replaced, --overwrite or not
     check_distinct([(label, path) for label, path, _ in outputs])
     exposure = scene.output.exposure if args.exposure is None else args.exposure
     display, white_balance, illuminant = "raw", None, None
     if len(outputs) > 1:  # the PNG's settings, checked before the render (aces needs OpenColorIO)
         display, white_balance, exposure, illuminant = png_settings(
             args.display or scene.output.display, args.white_balance or scene.output.white_balance, exposure, scene)
+    verbose = _verbose(args)
     w, h, spp = scene.image.width, scene.image.height, scene.image.spp
-    print(f"cloudmeta: rendering {args.scene}: {w} x {h}, {spp} spp, quality {scene.render.quality}, "
-          f"{scene.render.shadows} shadows, "
-          f"{sum(len(m.blob) for m in scene.media)} balls in {len(scene.media)} media, "
-          f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights"
-          + (f" ({scene.merged_balls} identical balls merged)" if scene.merged_balls else ""), flush=True)
+    verbose(f"rendering {args.scene}: {w} x {h}, {spp} spp, quality {scene.render.quality}, "
+            f"{scene.render.shadows} shadows, "
+            f"{sum(len(m.blob) for m in scene.media)} balls in {len(scene.media)} media, "
+            f"{sum(len(s.blob) for s in scene.surfaces)} in {len(scene.surfaces)} surfaces, {len(scene.lights)} lights"
+            + (f" ({scene.merged_balls} identical balls merged)" if scene.merged_balls else ""))
     # every output is created now as a temporary file and renamed into place only when all are written
     with atomic_outputs([path for _, path, _ in outputs]) as tmps:
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
-        image, error, took, approximation, estimated, raw, scattered = _render_image(
-            scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate, denoise=args.denoise)
-        stops = encode_outputs(image, tmps, scene.render.colourspace, exposure, error, raw, display, white_balance,
-                               illuminant)
-    if error is not None:
-        target = (f"render.error {scene.render.error:g}" if scene.render.error is not None else
-                  f"quality {scene.render.quality}: {QUALITY_TARGETS.get(scene.render.quality, 'none')}")
-        print(f"cloudmeta: estimated relative RMSE {estimated:.2e} (target of {target}; "
-              f"per pixel in the EXR's channels error.R/G/B)")
-    if scattered is not None and scattered.level is not None:
-        print(f"cloudmeta: quadrature calibrated for quality {scene.render.quality}: {_level_words(scattered.level)}"
-              + ("" if scattered.predicted is None else
-                                           f", measured relative RMSE {scattered.predicted:.1e} on its "
-                                           f"{scattered.rays} rays") + " (render.calibrate; docs/error_estimate.md)")
-        from ..renderer.calibrate import MIN_TRUSTED
-        if scattered.shorter:
-            print("cloudmeta: most of the calibration reference's steps took the Kronrod nodes: the level above is on "
-                  "the shorter ladder (steps half as thick, half a step coarser otherwise)")
-        if scattered.trusted is not None and scattered.trusted < MIN_TRUSTED:
-            print(f"cloudmeta: shadows hybrid: the calibration trusted {100 * scattered.trusted:.0f} % of the shadow "
-                  f"map's lookups (under {100 * MIN_TRUSTED:.0f} %): exact shadow rays instead")
-    if args.denoise:
-        print("cloudmeta: denoised the Monte Carlo part (Intel Open Image Denoise); the image before it is in "
-              "the EXR's channels raw.R/G/B/A")
-    if approximation is not None:
-        print(f"cloudmeta: the approximation's estimated relative RMSE against unbiased multiple scattering: "
-              f"{approximation.rel_rmse:.3f} +- {approximation.stderr:.3f} (from {approximation.pixels} of "
-              f"{approximation.cloud_pixels} cloud pixels, {approximation.paths} paths each; docs/approximate.md)")
+        result, took = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate,
+                                     denoise=args.denoise)
+        stops = encode_outputs(result.image, tmps, scene.render.colourspace, exposure, result.error, result.raw,
+                               display, white_balance, illuminant)
+    _details(verbose, result)
     if stops is not None:
         from ..api.display import describe
-        print(f"cloudmeta: PNG: {describe(display, white_balance, exposure, stops)} (docs/display.md)")
-    print(f"cloudmeta: rendered in {took:.2f} s; wrote {', '.join(path for _, path, _ in outputs)}")
+        verbose(f"PNG: {describe(display, white_balance, exposure, stops)} (docs/display.md)")
+    print(summary(args.scene, scene, result, took, [path for _, path, _ in outputs]), flush=True)
     return 0
+
+
+def _verbose(args):
+    """print(``cloudmeta: `` + a line) with -v, else nothing: the details behind the summary."""
+    def say(text):
+        if args.verbose:
+            print(f"cloudmeta: {text}", flush=True)
+    return say
+
+
+def _scattering_words(render):
+    if render.scattering == "approximate":
+        return f"approximate multiple scattering ({render.method})"
+    return f"{render.scattering} scattering"
+
+
+def _seconds(took):
+    return f"{took:.3g} s" if took < 1000 else f"{took:.0f} s"
+
+
+def summary(shown, scene, result, took, paths):
+    """The one line a render prints (``shown``: the scene as the user named it; ``result``: its
+    renderer.RenderResult; ``took``: seconds; ``paths``: the files written): what scene, how big, how long, the
+    estimated error against its target where known, what was written."""
+    settings = result.settings
+    w, h, spp = scene.image.width, scene.image.height, scene.image.spp
+    what = [f"{w} x {h}" + (f", {spp} spp" if spp > 1 else ""), _scattering_words(scene.render)]
+    if getattr(result, "raw", None) is not None:
+        what.append("denoised")
+    if settings.shadows != "exact":
+        what.append(f"{settings.shadows} shadows")
+    what.append(f"quality {settings.quality}")
+    target = settings.target
+    # the image's own estimate where one was made (--error, render.error); else the calibration's measure
+    error = result.estimated
+    if error is None and result.scattered is not None:
+        error = result.scattered.predicted
+    told = [_seconds(took)]
+    if error is not None:
+        told.append(f"estimated error {error:.1e}" + ("" if target is None else f" (target {target:.1e})"))
+    elif target is not None and scene.render.scattering != "multiple":  # (the paths' noise is not the preset's)
+        told.append(f"target error {target:.1e} (not estimated; --error estimates it)")
+    if result.approximation is not None:
+        a = result.approximation
+        told.append(f"approximation error {a.rel_rmse:.3f} +- {a.stderr:.3f} against multiple scattering")
+    return f"cloudmeta: {shown} {', '.join(what)}: {', '.join(told)}; wrote {', '.join(paths)}"
+
+
+def _details(verbose, result):
+    """-v: how the render reached its settings and error (the calibration, the estimate, the denoiser)."""
+    settings, scattered = result.settings, result.scattered
+    if result.error is not None:
+        target = (f"render.error {settings.error:g}" if settings.error is not None else
+                  f"quality {settings.quality}: {'none' if settings.target is None else f'{settings.target:g}'}")
+        verbose(f"estimated relative RMSE {result.estimated:.2e} (target of {target}; "
+                f"per pixel in the EXR's channels error.R/G/B)")
+    if scattered is not None and scattered.level is not None:
+        verbose(f"quadrature calibrated for quality {settings.quality}: {_level_words(scattered.level)}"
+                + ("" if scattered.predicted is None else
+                   f", measured relative RMSE {scattered.predicted:.1e} on its {scattered.rays} rays")
+                + " (render.calibrate; docs/error_estimate.md)")
+        from ..renderer.calibrate import MIN_TRUSTED
+        if scattered.shorter:
+            verbose("most of the calibration reference's steps took the Kronrod nodes: the level above is on "
+                    "the shorter ladder (steps half as thick, half a step coarser otherwise)")
+        if scattered.trusted is not None and scattered.trusted < MIN_TRUSTED:
+            verbose(f"shadows hybrid: the calibration trusted {100 * scattered.trusted:.0f} % of the shadow "
+                    f"map's lookups (under {100 * MIN_TRUSTED:.0f} %): exact shadow rays instead")
+    if result.raw is not None:
+        verbose("denoised the Monte Carlo part (Intel Open Image Denoise); the image before it is in "
+                "the EXR's channels raw.R/G/B/A")
+    a = result.approximation
+    if a is not None:
+        verbose(f"the approximation's estimated relative RMSE against unbiased multiple scattering: "
+                f"{a.rel_rmse:.3f} +- {a.stderr:.3f} (from {a.pixels} of {a.cloud_pixels} cloud pixels, {a.paths} "
+                f"paths each; docs/approximate.md)")
 
 
 def _outputs(args, scene):
@@ -114,21 +170,18 @@ def _outputs(args, scene):
 
 
 def _render_image(scene, progress, error=False, denoise=False):
-    """(image, error or None, seconds, the approximation's error or None, the estimated relative RMSE or None,
-    the image before denoising or None, the pilot's renderer.pilot.LightScale): the render, on a thread of its
-    own (``interruptible``)."""
+    """(the renderer.RenderResult, seconds): the render, on a thread of its own (``interruptible``)."""
     import numpy as np
 
     from ..renderer import render_frame
     compile_notice()
     start = time.perf_counter()
     result = interruptible(render_frame, scene, progress=progress, error=error, denoise=denoise)
-    image, err = result.image, result.error
     took = time.perf_counter() - start
-    if not np.all(np.isfinite(image)):
+    if not np.all(np.isfinite(result.image)):
         raise SceneError(scene.path, None, "the rendered image has values beyond the float32 range; lower "
                                            "the lights' irradiance or intensity (README: Limits)")
-    return image, err, took, result.approximation, result.estimated, result.raw, result.scattered
+    return result, took
 
 
 def _level_words(level):
@@ -249,10 +302,15 @@ def build_parser():
                    help="estimate each pixel's error (a second, coarser render) and write it into the EXR as "
                         "channels error.R/G/B; prints the estimated relative RMSE (docs/error_estimate.md)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    r.add_argument("-v", "--verbose", action="store_true",
+                   help="also say how the render reached its settings and error: the scene's size, the "
+                        "calibration's level and measure, the error estimate's channels")
     a = r.add_argument_group("sequences and clusters (docs/animation.md)")
     a.add_argument("--frames", help="frames A:B[:STEP] (A to B - 1) or N; -o and --png then take {frame} fields, "
                                     "e.g. out/f_{frame:04d}.exr (default: the scene's animation frames)")
-    a.add_argument("--overwrite", action="store_true", help="render frames whose files exist again (else skipped)")
+    r.add_argument("--overwrite", action="store_true",
+                   help="replace existing outputs: frames whose files exist are rendered again (else skipped); a "
+                        "single image replaces its files with or without it")
     a.add_argument("--tiles", help="cut each frame into K bands of rows or an RxC grid of tiles (tasks)")
     on = a.add_mutually_exclusive_group()
     on.add_argument("--workers", type=_positive, help="render on a local Dask cluster of N worker processes")

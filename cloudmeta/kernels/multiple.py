@@ -55,7 +55,7 @@ from .camera import background_radiance, camera_ray
 from .lighting import light_at_node, light_geometry
 from .intervals import alloc_ray_work, elementary_intervals
 from .borrow import borrow, hold_grown, release
-from .records import CameraSegment, PathKey, PathVectors, RayWork
+from .records import SHADOWS_MAP, CameraSegment, PathKey, PathVectors, RayWork
 from .sampling import free_flight, sample_phase_cos, sobol4, turn, uniform
 from .tracking import (DIM_LIGHT, DIM_SPAN, alloc_track_work, delta_flight, pick_medium, release_track,
                        tracked_transmittance)
@@ -311,7 +311,7 @@ def ray_paths(o_cam, d_cam, seed, pixel, first, step, camera_segment, scene, qua
     grown if a ray needed more room."""
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
     track_from = settings.track_from
-    map_trust = quad.map_tolerance if quad.map_tolerance == np.inf else 0.0
+    map_trust = np.inf if quad.shadow_mode == SHADOWS_MAP else 0.0
     has_env = False
     for q in range(scene.background.shape[0]):
         for c in range(3):

@@ -98,21 +98,30 @@ FlightTally = namedtuple("FlightTally", ["grid", "coef", "rgb"])
 PhotonSources = namedtuple("PhotonSources", ["kind", "vec", "rgb", "first", "centre", "radius", "background",
                                              "footprint", "axes"])
 
+#: records.Quadrature.shadow_mode: where a node's shadow transmittance T_l comes from (``render.shadows``,
+#: cloudmeta.scene.vocabulary.ShadowMode): exact shadow rays; a directional light's shadow map, always; or its map
+#: where the map's own error bound keeps map_tolerance, an exact shadow ray elsewhere (kernels.lighting)
+SHADOWS_EXACT = 0
+SHADOWS_MAP = 1
+SHADOWS_HYBRID = 2
+SHADOW_MODES = {"exact": SHADOWS_EXACT, "map": SHADOWS_MAP, "hybrid": SHADOWS_HYBRID}
+
 #: the in-scattering quadrature (cloudmeta.renderer.pack.quadrature): the step rule, 7 Gauss and 15 Kronrod nodes
 #: on [0, 1] with their Lagrange bases at a fine Gauss rule (fine_y, fine_w); where the Gauss nodes and
 #: the other 8 sit among the 15 (gauss_col, kronrod_col); tail (2, 7) maps J at the Gauss nodes to its two
-#: highest Legendre coefficients. Then the render's quality settings (cloudmeta.renderer.quality.resolve_quality):
+#: highest Legendre coefficients. Then the render's quality settings (cloudmeta.renderer.quality.FrameSettings):
 #: max_tau, max_length, max_angle, cutoff, u_stop = -log(cutoff) (the view optical depth past which
 #: nothing is shaded; inf for cutoff 0), tol_t (the root tolerance on t, absolute), tolerance, and
 #: light_scale (the frame's scattered-light scale that tolerance is relative to, cloudmeta.renderer.calibrate; 0:
-#: relative to each ray's brightest J instead), and map_tolerance: the error of J (r + g + b, weighted by the view
-#: transmittance, absolute) that a shadow map's interpolation may make at a node before an exact shadow ray
-#: replaces it (``shadows: hybrid``; inf for ``shadows: map``, which always trusts the map; kernels.lighting);
-#: growth: the step limits at view depth u are max_tau and max_length times e^(growth u) (0: equal steps)
+#: relative to each ray's brightest J instead); shadow_mode (SHADOWS_EXACT, SHADOWS_MAP or SHADOWS_HYBRID, int64)
+#: and map_tolerance: with SHADOWS_HYBRID, the error of J (r + g + b, weighted by the view transmittance,
+#: absolute) that a shadow map's interpolation may make at a node before an exact shadow ray replaces it (0:
+#: exact rays only; unread in the other modes); growth: the step limits at view depth u are max_tau and
+#: max_length times e^(growth u) (0: equal steps)
 Quadrature = namedtuple("Quadrature", ["gauss_x", "gauss_lag", "kronrod_x", "kronrod_lag", "gauss_col",
                                        "kronrod_col", "tail", "fine_y", "fine_w", "max_tau", "max_length",
                                        "max_angle", "cutoff", "u_stop", "tol_t", "tolerance", "light_scale",
-                                       "map_tolerance", "growth"])
+                                       "shadow_mode", "map_tolerance", "growth"])
 
 #: a pinhole camera (docs/model.md §8): position, forward, and right / up scaled to the image plane's
 #: half-extent at distance 1 (3,) each; the image size, samples per pixel and the jitter seed

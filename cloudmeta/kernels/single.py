@@ -73,7 +73,7 @@ from .lighting import (COUNT_FOLDS, COUNT_KRONROD, COUNT_NODES, COUNT_SPLITS, CO
                        light_at_node)
 from .media import collect_media
 from .optics import phase
-from .records import RayWork, StepState
+from .records import SHADOWS_HYBRID, SHADOWS_MAP, RayWork, StepState
 from .intervals import alloc_ray_work, depth_at, elementary_intervals
 from .surfaces import SHADOW_OFFSET, surface_normal
 
@@ -240,9 +240,11 @@ def source_at(u, k_b, cursor, o, d, scene, quad, scratch, work, col):
     octaves = scene.octaves
     work.nodes.count[COUNT_NODES] += 1.0
     # a map's error at this node is seen through e^-u; the octaves' T_l^(a^i) would amplify it: exact rays
-    j_tol = quad.map_tolerance
-    if j_tol != np.inf:
-        j_tol = 0.0 if octaves.shape[0] > 1 else j_tol * math.exp(min(u, 700.0))
+    j_tol = 0.0  # kernels.lighting.light_at_node: 0 traces exact shadow rays, inf always takes the map
+    if quad.shadow_mode == SHADOWS_MAP:
+        j_tol = np.inf
+    elif quad.shadow_mode == SHADOWS_HYBRID and octaves.shape[0] == 1:
+        j_tol = quad.map_tolerance * math.exp(min(u, 700.0))
     # the last octave sees the least optical depth (a^i tau): the shadow ray counts until that one is dark
     scratch = light_at_node(pos, pos, d, False, quad.u_stop / octaves[octaves.shape[0] - 1, 0], j_tol, scene,
                             quad.tol_t, scratch, work)
@@ -498,7 +500,9 @@ def shade_surface(o, d, t_hit, s, scene, quad, scratch, work):
     surface_normal(x, d, scene.surfaces, s, work.cand, work.stack, nrm)
     for c in range(3):
         x_off[c] = x[c] + SHADOW_OFFSET * quad.tol_t * nrm[c]
-    scratch = light_at_node(x, x_off, nrm, True, quad.u_stop, quad.map_tolerance, scene, quad.tol_t, scratch, work)
+    j_tol = np.inf if quad.shadow_mode == SHADOWS_MAP else (
+        quad.map_tolerance if quad.shadow_mode == SHADOWS_HYBRID else 0.0)
+    scratch = light_at_node(x, x_off, nrm, True, quad.u_stop, j_tol, scene, quad.tol_t, scratch, work)
     e0 = 0.0
     e1 = 0.0
     e2 = 0.0

@@ -20,10 +20,10 @@ scale 0. The quadrature then falls back to a tolerance relative to each ray's br
 **Calibration** (issue #23: the preset is a target, checked on the scene at hand rather than tuned on a
 suite). A preset's fixed settings keep its target on the hardest scenes of the accuracy suite, so they do
 several times too much work on easy ones: the shipped cumulus at ``default`` lands at 1.2e-4 against its 1e-3.
-Where ``calibrates`` holds, a calibration grid of the frame's rays (``calibration_size``) is rendered on one
+Where FrameSettings.calibrate holds, a calibration grid of the frame's rays (``calibration_size``) is rendered on one
 ladder of settings, LADDER's preset scaled by ``level`` steps of renderer.estimate's factors
-(``scaled_quality``), each preset starting at START: one step below the start (the calibration's reference,
-with exact shadow rays under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to
+(``scaled_quality``), each preset starting at its own level (renderer.quality.Preset.start): one step below
+the start (the calibration's reference, with exact shadow rays under ``shadows: hybrid``), then above it. The frame takes the coarsest level, up to
 MAX_LEVEL above the start, whose relative RMSE against that reference is at most SHARE of the target
 (``calibrated_level``): the step above the start first; where it fails, a try below it aimed as if the error grew
 GROWTH times a step, and the start itself only where that fails too; then regula falsi between the last level that
@@ -44,10 +44,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..scene.vocabulary import QUALITY_TARGETS
+from ..scene.vocabulary import ShadowMode
 from .estimate import scaled_quality
 from .pack import Packed, pack_camera, quadrature
-from .quality import resolve_quality
+from .quality import QUADRATURE_KEYS, preset_quality
 from .single import render_single
 from ..kernels.lighting import COUNT_KRONROD, COUNT_NODES, COUNT_STEPS
 
@@ -58,7 +58,7 @@ from ..kernels.lighting import COUNT_KRONROD, COUNT_NODES, COUNT_STEPS
 STRIDE = 16
 MIN_SIDE = 16
 #: calibration: the frame's settings are the coarsest whose error on the calibration grid is at most SHARE of
-#: the target, at most MAX_LEVEL steps above the preset's START on the ladder (each step: tolerance and cutoff
+#: the target, at most MAX_LEVEL steps above the preset's start on the ladder (each step: tolerance and cutoff
 #: x 3, max_tau, max_length and max_angle x 2); a level found between two steps is kept if its own error passes
 SHARE = 0.5
 MAX_LEVEL = 3.0
@@ -80,10 +80,10 @@ WORTH = 1.5
 #: from level 0 to 1 on the front-lit cumulus, the back-lit one and the bank (2026-12-05)
 GROWTH = 3.0
 #: calibrated frames take their settings on one ladder: LADDER's preset scaled by 3^level / 2^level, each preset
-#: starting at START (draft's fixed settings are about one step coarser than default's, fine's one finer; on
-#: the cumulus at 256 x 256 fine's own settings, calibrated, took 3.5 s where default's reached lower error in 2.3 s)
+#: starting at its own level (renderer.quality.Preset.start)
 LADDER = "default"
-START = {"draft": 1.0, "default": 0.0, "fine": -1.0}
+#: the preset the pilot measures the scattered light at
+PILOT = "draft"
 #: ``shadows: hybrid``: where the calibration's grid, at the level chosen, trusted fewer than this share of its map
 #: lookups, the frame traces exact shadow rays instead (more accurate, never less). A failed lookup costs its time on
 #: top of the exact ray, a small fraction of it: at 512 x 512 (2026-12-05) the front-lit cumulus, trusting 25 %,
@@ -95,8 +95,6 @@ MIN_TRUSTED = 0.1
 KRONROD_SHARE = 0.35
 SHORTER_LEVEL = 0.5
 SHORTER_TAU = 0.5
-#: the quadrature keys that, given explicitly, turn calibration off (the user chose the settings)
-QUADRATURE_KEYS = ("tolerance", "max_tau", "max_length", "max_angle", "cutoff")
 
 
 @dataclass(frozen=True)
@@ -157,27 +155,15 @@ def pilot_render(scene, packed, quality, size=None):
     return image, counts
 
 
-def light_scale(scene, packed) -> LightScale:
-    """The frame's scattered-light scale, measured by the pilot at ``draft`` (this module's docstring)."""
-    draft = replace(scene.render, quality="draft", tolerance=None, max_tau=None, max_length=None,
-                    max_angle=None, cutoff=None, root_tolerance=None)
-    quality = replace(resolve_quality(draft, scene.length_scale()), tol_t=packed.quadrature.tol_t)
+def light_scale(scene, packed, shadows=ShadowMode.EXACT) -> LightScale:
+    """The frame's scattered-light scale, measured by the pilot at PILOT's preset (this module's docstring), with
+    the frame's ``shadows``."""
+    quality = replace(preset_quality(PILOT, scene.length_scale(), shadows), tol_t=packed.quadrature.tol_t)
     image = pilot_image(scene, packed, quality)
     rgb = image[..., :3]
     total = rgb.sum(axis=-1)
     return LightScale(mean=float(rgb.mean()), scale=float(np.sqrt(np.mean(total * total))),
                       width=image.shape[1], height=image.shape[0])
-
-
-def calibrates(scene):
-    """Whether the frame's settings are calibrated on the pilot (module docstring): single scattering or the
-    approximate mode (whose quadrature is single scattering's, with a smoother source) at a preset with a
-    target, no quadrature key given explicitly, no ``render.error`` (that mode refines on its own estimate)
-    and ``render.calibrate`` on. Multiple scattering is not: its Monte Carlo paths are its error."""
-    r = scene.render
-    return (r.calibrate and r.scattering in ("single", "approximate") and r.quality in QUALITY_TARGETS
-            and r.error is None
-            and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
 
 
 def a_twentieth_above(passed, failed, level):
@@ -267,14 +253,15 @@ def _between(error_at, passed, e_passed, failed, e_failed, limit, worth):
     return passed, e_passed
 
 
-def calibrate(scene, packed, quality, scale):
+def calibrate(scene, packed, quality, scale, preset):
     """(the frame's Quality, its LightScale with the level): LADDER's settings, with ``quality``'s scale and
-    shadow share, at the calibrated level (module docstring; levels relative to the preset's START)."""
-    target = QUALITY_TARGETS[scene.render.quality]
+    shadow mode, at the calibrated level for ``preset``'s target (a renderer.quality.Preset; module docstring;
+    levels relative to the preset's start)."""
+    target = preset.target
     size = calibration_size(scene.image.width, scene.image.height)
-    on_ladder = resolve_quality(replace(scene.render, quality=LADDER), scene.length_scale())
+    on_ladder = preset_quality(LADDER, scene.length_scale())
     ladder = replace(quality, **{key: getattr(on_ladder, key) for key in QUADRATURE_KEYS})
-    start = START[scene.render.quality]
+    start = preset.start
     # (level, exact) -> the grid's image and its per-pixel counts (nodes, exact rays, lookups, trusted lookups): a
     # search restarted with exact rays reuses its renders
     images = {}
@@ -282,13 +269,13 @@ def calibrate(scene, packed, quality, scale):
 
     def render_grid(q, exact):
         """(the grid's scattered light as float64, its per-pixel counts) at Quality q (with exact shadow rays)."""
-        image, grid_counts = pilot_render(scene, packed, replace(q, map_share=0.0) if exact else q, size)
+        image, grid_counts = pilot_render(scene, packed, replace(q, shadows=ShadowMode.EXACT) if exact else q, size)
         return image[..., :3].astype(np.float64), grid_counts
 
     # with hybrid shadows the reference traces exact shadow rays: a hybrid map's error, which need not shrink
     # with the tolerance (a puff between texel rays), then counts in full in every level's measure (``shadows:
     # map`` always interpolates: its error is the user's choice, and the calibration scales the quadrature)
-    hybrid = 0.0 < quality.map_share < math.inf
+    hybrid = quality.shadows == ShadowMode.HYBRID
     images[-1.0, hybrid], counts[-1.0, hybrid] = render_grid(scaled_quality(ladder, start - 1.0), hybrid)
     reference = images[-1.0, hybrid]
     mean = float(reference.mean())
@@ -354,7 +341,7 @@ def calibrate(scene, packed, quality, scale):
         # (level -1 is the exact reference's render: no lookups, so exact rays; -2, finer still, likewise)
         trusted = exact_from[0] if exact_from else trusted_share(counts[max(level, -1.0), level <= -1.0])
         if trusted < MIN_TRUSTED:  # the lookups would cost more than they spare: exact rays (only more exact)
-            chosen = replace(chosen, map_share=0.0)
+            chosen = replace(chosen, shadows=ShadowMode.EXACT)
     # the frame's mean scattered radiance becomes the reference's: more rays at finer settings than the pilot's, whose
     # few rays can miss a small bright spot (a lamp inside a deck: 25x too dark at 64 x 48, and every estimate 25x high)
     return chosen, replace(scale, mean=mean, level=start + level, predicted=predicted, rays=grid_rays,
@@ -377,11 +364,15 @@ def trusted_share(counts):
     return float(tally[3] / tally[2]) if tally[2] > 0.0 else 0.0
 
 
-def pilot_quality(scene, packed, quality):
-    """(the frame's Quality, its LightScale): ``quality`` (the scene's resolved settings) with the pilot's
-    scattered-light scale, calibrated where ``calibrates`` holds."""
-    scale = light_scale(scene, packed)
-    quality = replace(quality, light_scale=scale.scale)
-    if scale.scale > 0.0 and calibrates(scene):
-        return calibrate(scene, packed, quality, scale)
+def pilot_quality(scene, packed, settings):
+    """(the frame's Quality, its LightScale): the quadrature of ``settings`` (the frame's
+    renderer.quality.FrameSettings) with the pilot's scattered-light scale, calibrated where settings.calibrate
+    holds (single scattering or the approximate mode, whose quadrature is single scattering's with a smoother
+    source, at a preset with a target, no quadrature key given explicitly, no ``render.error``: that mode refines
+    on its own estimate, and ``render.calibrate`` on; multiple scattering is not: its Monte Carlo paths are its
+    error)."""
+    scale = light_scale(scene, packed, settings.shadows)
+    quality = replace(settings.quadrature, light_scale=scale.scale)
+    if scale.scale > 0.0 and settings.calibrate:
+        return calibrate(scene, packed, quality, scale, settings.preset)
     return quality, scale

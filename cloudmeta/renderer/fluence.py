@@ -5,8 +5,8 @@ quadrature gathers.
 ``radiance_grid`` spreads the photons over the lights and the environment by power, traces them in
 BATCHES fixed batches on threads (each deposits into its own array; the sum runs in batch order, so the grid
 does not depend on the thread count), and turns the sums into the field's moments at the cells' centres.
-Its resolution and photon count come from the quality preset (GRID_PRESETS), or ``render.grid``, which also
-says where the photons deposit (``grid_deposit``). ``delta_split`` takes each phase function's forward peak
+Its resolution, photon count and where the photons deposit are the frame's FrameSettings.grid (its quality
+preset's, renderer.quality.PRESETS, or ``render.grid``'s). ``delta_split`` takes each phase function's forward peak
 out of the deposits and into the camera ray's extinction (docs/approximate.md).
 """
 from __future__ import annotations
@@ -22,6 +22,7 @@ from ..kernels.kinds import DIRECTIONAL
 from ..kernels.optics import phase
 from ..kernels.records import PhotonSources, RadianceGrid
 from ..scene.atmosphere import sky_mean
+from .quality import resolve_settings
 from .tracking import RR_ORDER, majorant_grid
 
 #: photons are traced in this many batches, whatever the threads (bit-identical grids)
@@ -32,25 +33,6 @@ PEAK_DEGREES = 10.0
 SUBCELLS = 4
 #: texels per side of a directional light's footprint on its photons' disk (sun_footprint)
 FOOTPRINT_TEXELS = 256
-#: per quality preset: (cells, as the side of a cube of cells of the media's box's volume; photons)
-GRID_PRESETS = {"draft": (24, 1 << 21), "default": (40, 1 << 23), "fine": (56, 1 << 25)}
-
-
-def _grid_keys(scene):
-    """render.grid's (cells, photons, deposit), with None for cells and photons and flights where it is absent."""
-    return scene.render.grid or (None, None, "flights")
-
-
-def grid_settings(scene):
-    """(cells, photons) of the scene: render.grid's keys, else its quality preset's."""
-    cells, photons = GRID_PRESETS[scene.render.quality]
-    given_cells, given_photons, _ = _grid_keys(scene)
-    return int(given_cells or cells), int(given_photons or photons)
-
-
-def grid_deposit(scene):
-    """kernels.fluence.FLIGHTS or COLLISIONS: render.grid.deposit (flights where absent)."""
-    return COLLISIONS if _grid_keys(scene)[2] == "collisions" else FLIGHTS
 
 
 def sun_footprint(mgrid, w, centre, radius, texels=FOOTPRINT_TEXELS):
@@ -142,10 +124,11 @@ def delta_split(media, peak_degrees):
     return peak, media._replace(scale=media.scale * keep, albedo=media.albedo / keep)
 
 
-def radiance_grid(scene, records, seed, camera_position, peak) -> RadianceGrid:
+def radiance_grid(scene, records, seed, camera_position, peak, grid) -> RadianceGrid:
     """The records.RadianceGrid of the scene (records: its packed records.SceneRecords) seen from
-    camera_position, depositing the phase functions clamped by peak (delta_split): module docstring."""
-    cells, photons = grid_settings(scene)
+    camera_position, depositing the phase functions clamped by peak (delta_split), with ``grid`` = (cells, photons,
+    deposit), FrameSettings.grid: module docstring."""
+    cells, photons, where = grid
     med = records.media
     mgrid = majorant_grid(scene, med)
     lo = mgrid.origin
@@ -167,7 +150,6 @@ def radiance_grid(scene, records, seed, camera_position, peak) -> RadianceGrid:
     total = int(src.first[-1])
     edges = [total * b // BATCHES for b in range(BATCHES + 1)]
     max_order = int(scene.render.max_order)
-    where = grid_deposit(scene)
 
     def batch(b):
         coef = np.zeros((n_cells, 3, n_media))
@@ -191,11 +173,13 @@ def radiance_grid(scene, records, seed, camera_position, peak) -> RadianceGrid:
     return shell._replace(coef=coef / size ** 3, filled=sigma_s / size ** 3)
 
 
-def with_radiance_grid(scene, packed, seed):
+def with_radiance_grid(scene, packed, seed, settings=None):
     """``packed`` (a renderer.pack.Packed) with the grid method's records.RadianceGrid in its records, for a scene
-    rendered by ``scattering: approximate, method: grid`` with media; else ``packed`` as it is."""
-    if scene.render.scattering != "approximate" or scene.render.method != "grid" or not scene.media:
+    rendered by ``scattering: approximate, method: grid`` with media (its FrameSettings.grid: ``settings``, else the
+    scene's own); else ``packed`` as it is."""
+    settings = resolve_settings(scene) if settings is None else settings
+    if settings.grid is None or not scene.media:
         return packed
     peak, view = delta_split(packed.records.media, PEAK_DEGREES)
-    grid = radiance_grid(scene, packed.records, seed, scene.camera.position, peak)
+    grid = radiance_grid(scene, packed.records, seed, scene.camera.position, peak, settings.grid)
     return packed._replace(records=packed.records._replace(radiance=grid, view_media=view))

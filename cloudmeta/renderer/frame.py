@@ -1,5 +1,6 @@
 """One frame: Scene -> linear image. ``render_frame`` packs the scene once (renderer.pack), runs the
-deterministic single-scattering driver (renderer.single) at the scene's quality (renderer.quality), or
+deterministic single-scattering driver (renderer.single) at the frame's settings (renderer.quality.FrameSettings,
+resolved once here and handed down), or
 under the error estimate (renderer.estimate), and adds the Monte Carlo part of the estimator that
 ``render.scattering`` names (``ESTIMATORS``). One record, ``RenderResult``, flows back whatever the flags;
 ``render`` keeps the public API's return values (the image; (image, depth) with ``depth``; error last).
@@ -11,11 +12,11 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import CloudmetaError, InputError
 from ..kernels.lighting import (COUNT_EXACT, COUNT_FOLDS, COUNT_KRONROD, COUNT_LOOKUPS, COUNT_NODES, COUNT_SPLITS,
                                 COUNT_STEPS, COUNT_TRUSTED, N_COUNTS)
 from ..scene.model import Scene
-from ..scene.vocabulary import SCATTERING_MODES
+from ..scene.vocabulary import SCATTERING_MODES, ShadowMode
 from .threads import tile_window
 from .denoise import aux_images, denoise_paths, require_denoiser
 from .fluence import with_radiance_grid
@@ -24,7 +25,7 @@ from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, render_multiple
 from .pack import pack_scene, quadrature, without_maps
 from .calibrate import pilot_quality
-from .quality import scene_quality
+from .quality import FrameSettings, resolve_settings
 from .single import render_single
 
 
@@ -73,6 +74,10 @@ class RenderResult:
     #: with denoise=True, the image before its Monte Carlo part was denoised (renderer.denoise); ``error`` and
     #: ``estimated`` are of this raw image
     raw: np.ndarray | None = None
+    #: the frame's settings as resolved once (renderer.quality.FrameSettings: preset, target, shadow mode, ...),
+    #: and the quadrature the image was rendered at (a renderer.quality.Quality: calibrated, refined)
+    settings: FrameSettings | None = None
+    quality: object | None = None
 
     def cost(self):
         """Per pixel with media (alpha > 0), the mean count of quadrature nodes, exact shadow rays, map lookups
@@ -108,16 +113,16 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     estimator = ESTIMATORS[scene.render.scattering]
     if estimator.check is not None:
         estimator.check(scene)
+    settings = resolve_settings(scene)  # every render setting, decided once for the frame
     # one packing; the pilot (renderer.pilot) measures the frame's scattered light: the quadrature's scale
-    base = scene_quality(scene)
-    packed = with_radiance_grid(scene, pack_scene(scene, seed, base), seed)  # the grid method's photons, once
-    quality, scattered = pilot_quality(scene, packed, base)
+    packed = with_radiance_grid(scene, pack_scene(scene, seed, settings), seed, settings)  # the grid's photons, once
+    quality, scattered = pilot_quality(scene, packed, settings)
     packed = packed._replace(quadrature=quadrature(quality))
-    if quality.map_share == 0.0 and scene.render.shadows == "hybrid":
+    if settings.shadows == ShadowMode.HYBRID and quality.shadows == ShadowMode.EXACT:
         # the calibration turned a hybrid frame to exact shadow rays (renderer.pilot MIN_TRUSTED): the kernel compiled
         # for exact shadows, without the map code, runs it 3 % faster (the 1,200-ball bank at 512 x 512)
         packed = packed._replace(records=without_maps(scene, packed.records))
-    target = scene.render.error
+    target = settings.error
 
     def scattered_norm(image, nearest):  # the estimate's denominator (renderer.estimate.frame_scattered_mean)
         return frame_scattered_mean(image, nearest, packed.camera, packed.records.background, window, scattered.mean)
@@ -144,7 +149,10 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
             raw = image.copy()
             raw[..., :3] += mean
             albedo, _ = aux_images(scene, packed, window)  # the normals: worse guides here (renderer.denoise)
-            mean = denoise_paths(denoiser, mean, albedo, None, image[..., 3])
+            try:
+                mean = denoise_paths(denoiser, mean, albedo, None, image[..., 3])
+            except Exception as exc:  # the library's own errors: one of cloudmeta's classes, one line
+                raise CloudmetaError(f"denoise: Intel Open Image Denoise failed: {type(exc).__name__}: {exc}") from exc
         image[..., :3] += mean
         if err is not None:
             err = np.sqrt(err * err + stderr * stderr)
@@ -157,7 +165,8 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     return RenderResult(image=image.astype(np.float32), depth=nearest.copy(),
                         error=None if not error else err.astype(np.float32), approximation=approximation,
                         scattered=scattered, estimated=estimated, counts=counts,
-                        raw=None if denoiser is None else raw.astype(np.float32))
+                        raw=None if denoiser is None else raw.astype(np.float32), settings=settings,
+                        quality=quality)
 
 
 def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False, denoise=False):

@@ -17,13 +17,13 @@ import numba
 import numpy as np
 
 from ..kernels.kinds import DENSITY_MODES, LIGHTS, PHASES
-from ..kernels.records import (BVH, Camera, LightVolumes, Lights, MapPieces, Media, Quadrature, SceneRecords,
-                               ShadowMaps, Surfaces)
+from ..kernels.records import (SHADOWS_EXACT, BVH, Camera, LightVolumes, Lights, MapPieces, Media, Quadrature,
+                               SceneRecords, ShadowMaps, Surfaces)
 from ..kernels.shadowmap import fill_volume_chunk, trace_texel_chunk
 from ..scene.atmosphere import sky_mean
-from ..scene.vocabulary import MAP_SHADOWS, SHADOW_MAP_RESOLUTION
+from ..scene.vocabulary import HYBRID_SHARE, ShadowMode
 from .threads import n_chunks
-from .quality import Quality, scene_quality
+from .quality import FrameSettings, resolve_settings
 
 #: map pieces reserved per texel for the single tracing pass (a map that needs more is traced again)
 MAP_PIECES_PER_TEXEL = 4
@@ -107,11 +107,12 @@ def media_bbox(scene):
 
 
 def scene_records(scene, quad, shadow_map_resolution) -> SceneRecords:
-    """The scene as the radiance kernels read it; with ``render.shadows: map`` or ``hybrid`` (and media), a shadow map
-    of ``shadow_map_resolution`` texels per side for each directional light."""
+    """The scene as the radiance kernels read it; where ``quad`` (a records.Quadrature) takes shadows from maps
+    (SHADOWS_MAP or SHADOWS_HYBRID) and the scene has media, a shadow map of ``shadow_map_resolution`` texels per
+    side for each directional light."""
     med = pack_media(scene.media)
     maps = None
-    if scene.render.shadows in MAP_SHADOWS and scene.media:
+    if quad.shadow_mode != SHADOWS_EXACT and scene.media:
         lo, hi = media_bbox(scene)
         maps = build_shadow_maps(scene.lights, med, lo, hi, shadow_map_resolution, quad.tol_t)
     # fresh writable copies: numba types read-only arrays apart, and a second type means a second compile
@@ -371,19 +372,20 @@ def quadrature_rule():
 def quadrature(quality) -> Quadrature:
     """The rule and the resolved settings (a renderer.quality.Quality) as one records.Quadrature."""
     u_stop = -math.log(quality.cutoff) if quality.cutoff > 0.0 else math.inf
+    shadows = ShadowMode(quality.shadows)
     return Quadrature(**quadrature_rule(), max_tau=float(quality.max_tau), max_length=float(quality.max_length),
                       max_angle=float(quality.max_angle), cutoff=float(quality.cutoff), u_stop=u_stop,
                       tol_t=float(quality.tol_t), tolerance=float(quality.tolerance),
-                      light_scale=float(quality.light_scale), map_tolerance=map_tolerance(quality),
-                      growth=float(quality.growth))
+                      light_scale=float(quality.light_scale), shadow_mode=np.int64(shadows.kernel_id),
+                      map_tolerance=map_tolerance(quality), growth=float(quality.growth))
 
 
 def map_tolerance(quality):
-    """records.Quadrature.map_tolerance: inf for a plain map (always trusted), else the hybrid share of the
-    absolute tolerance (0 without a pilot's light scale: exact shadow rays then)."""
-    if quality.map_share == math.inf:
-        return math.inf
-    return float(quality.map_share * quality.tolerance * quality.light_scale)
+    """records.Quadrature.map_tolerance: with hybrid shadows, HYBRID_SHARE of the absolute tolerance (0 without a
+    pilot's light scale: exact shadow rays then); 0 in the other modes, which do not read it."""
+    if quality.shadows != ShadowMode.HYBRID:
+        return 0.0
+    return float(HYBRID_SHARE * quality.tolerance * quality.light_scale)
 
 
 # --- the whole scene --------------------------------------------------------------------------------------
@@ -392,8 +394,10 @@ def map_tolerance(quality):
 Packed = namedtuple("Packed", ["camera", "records", "quadrature"])
 
 
-def pack_scene(scene, seed, quality: Quality | None = None) -> Packed:
-    """The scene packed for the kernels, at the scene's quality settings or at ``quality``."""
-    quad = quadrature(scene_quality(scene) if quality is None else quality)
-    records = scene_records(scene, quad, scene.render.shadow_map or SHADOW_MAP_RESOLUTION)
+def pack_scene(scene, seed, settings: FrameSettings | None = None) -> Packed:
+    """The scene packed for the kernels at its FrameSettings (renderer.quality.resolve_settings, or ``settings``
+    where the frame resolved them)."""
+    settings = resolve_settings(scene) if settings is None else settings
+    quad = quadrature(settings.quadrature)
+    records = scene_records(scene, quad, settings.shadow_map)
     return Packed(camera=pack_camera(scene, seed), records=records, quadrature=quad)

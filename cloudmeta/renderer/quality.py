@@ -1,5 +1,11 @@
-"""Quality settings (``render:`` in the scene, docs/model.md §9). ``quality`` picks a preset; any of the other
-keys overrides that preset's value:
+"""The render settings of a frame, each decided once (``render:`` in the scene, docs/model.md §9).
+
+``resolve_settings`` turns the scene's ``render:`` into one FrameSettings where the frame starts: the preset
+(PRESETS, the one table of what each ``quality`` means: its target, its quadrature, its calibration start on
+the ladder, its grid), the shadow mode (a vocabulary.ShadowMode), the resolved quadrature (Quality), whether
+the pilot calibrates it, and the grid method's cells and photons. The drivers read its fields; the kernels
+read its quadrature as records.Quadrature, with the shadow mode as an explicit id. ``quality`` picks a
+preset; any of the other keys overrides that preset's value:
 
 =============== ======= ======= ======= ========== ====================================================
 key             draft   default fine    reference  meaning
@@ -17,6 +23,10 @@ cutoff          1e-4    1e-4    1e-5    0          stop shading once the view tr
 root_tolerance  1e-9    1e-9    1e-9    1e-9       root tolerance, relative to the scene's length L
 growth          1       1       1       0          the step limits max_tau and max_length grow as
                                                    e^(growth u) with the view's optical depth u (not a key)
+(start)         1       0       -1      -          the calibration's first level on its ladder
+                                                   (renderer.calibrate.LADDER)
+(grid)          24^3    40^3    56^3    56^3       the grid method's cells and photons
+                2^21    2^23    2^25    2^25       (renderer.fluence; ``render.grid`` overrides)
 =============== ======= ======= ======= ========== ====================================================
 
 The scene's length L is its bounding-box diagonal, unless some of its geometry lies far from the rest:
@@ -48,29 +58,53 @@ seen through less than ``cutoff`` of view transmittance is not shaded (like the 
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-
+from ..kernels.fluence import COLLISIONS, FLIGHTS
 from ..scene.model import RenderSettings
-from ..scene.vocabulary import HYBRID_SHARE, QUALITIES
+from ..scene.vocabulary import QUALITIES, SHADOW_MAP_RESOLUTION, ShadowMode
 
-#: the quadrature presets (issue #23): each is a target of the image's RMSE over its mean scattered radiance
+
+@dataclass(frozen=True)
+class Preset:
+    """What one ``quality`` means, in every mode (this module's table)."""
+    #: the image's relative RMSE against the converged image that the preset keeps (docs/error_estimate.md);
+    #: None: no target (``reference``), and then no calibration
+    target: float | None
+    #: the quadrature's settings, as the table above gives them (max_length relative to the scene's length L)
+    quadrature: dict
+    #: the calibration's first level on its ladder (renderer.calibrate; None: not calibrated)
+    start: float | None
+    #: the approximate mode's grid method: (cells, as the side of a cube of cells of the media's box's volume;
+    #: photons) (renderer.fluence)
+    grid: tuple
+
+
+#: the presets: each is a target of the image's RMSE over its mean scattered radiance
 #: (draft 3e-3, default 1e-3, fine 3e-4), with ``tolerance`` equal to the target (relative to the pilot's
 #: scattered-light scale). max_tau and cutoff were chosen as the cheapest on the 14 scenes of the accuracy
 #: suite that kept every scene at or below half its target (docs/error_estimate.md "Presets"); the six
-#: black-background scenes of the suite were held out of that choice
+#: black-background scenes of the suite were held out of that choice. The calibration starts draft one step
+#: coarser than default's settings and fine one finer (draft's fixed settings are about one step coarser than
+#: default's, fine's one finer; on the cumulus at 256 x 256 fine's own settings, calibrated, took 3.5 s where
+#: default's reached lower error in 2.3 s). ``reference`` has no target: it is neither calibrated nor given a
+#: grid of its own (fine's)
 PRESETS = {
-    "draft": dict(tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9,
-                  growth=1.0),
-    "default": dict(tolerance=1e-3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-4,
-                    root_tolerance=1e-9, growth=1.0),
-    "fine": dict(tolerance=3e-4, max_tau=0.175, max_length=1 / 32, max_angle=0.1, cutoff=1e-5, root_tolerance=1e-9,
-                 growth=1.0),
-    "reference": dict(tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0,
-                      root_tolerance=1e-9, growth=0.0),
+    "draft": Preset(target=3e-3, start=1.0, grid=(24, 1 << 21), quadrature=dict(
+        tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9, growth=1.0)),
+    "default": Preset(target=1e-3, start=0.0, grid=(40, 1 << 23), quadrature=dict(
+        tolerance=1e-3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-4, root_tolerance=1e-9,
+        growth=1.0)),
+    "fine": Preset(target=3e-4, start=-1.0, grid=(56, 1 << 25), quadrature=dict(
+        tolerance=3e-4, max_tau=0.175, max_length=1 / 32, max_angle=0.1, cutoff=1e-5, root_tolerance=1e-9,
+        growth=1.0)),
+    "reference": Preset(target=None, start=None, grid=(56, 1 << 25), quadrature=dict(
+        tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0, root_tolerance=1e-9,
+        growth=0.0)),
 }
 assert tuple(PRESETS) == QUALITIES, "every quality name of the scene's vocabulary has a preset"
+#: the quadrature keys that, given explicitly, turn calibration off (the user chose the settings)
+QUADRATURE_KEYS = ("tolerance", "max_tau", "max_length", "max_angle", "cutoff")
 
 
 @dataclass(frozen=True)
@@ -85,25 +119,68 @@ class Quality:
     #: the frame's scattered-light scale (renderer.pilot; RGB sum): ``tolerance`` is relative to it; 0 where
     #: it is not measured, and then relative to each ray's brightest J
     light_scale: float = 0.0
-    #: the share of ``tolerance`` a shadow map's interpolation may take at a node before an exact shadow ray
-    #: replaces it: HYBRID_SHARE for ``shadows: hybrid``, inf for ``map`` (always trusted), 0 for ``exact``
-    map_share: float = 0.0
+    #: where the nodes' shadow transmittance comes from: with HYBRID a map's interpolation may take
+    #: vocabulary.HYBRID_SHARE of the tolerance before an exact shadow ray replaces it (renderer.pack.quadrature)
+    shadows: ShadowMode = ShadowMode.EXACT
     #: the step limits at view depth u are max_tau and max_length times e^(growth u) (the preset's; 0: equal steps)
     growth: float = 0.0
+
+
+@dataclass(frozen=True)
+class FrameSettings:
+    """Every render setting of a frame, decided once from the scene's ``render:`` (``resolve_settings``)."""
+    quality: str                 #: the preset's name
+    preset: Preset               #: PRESETS[quality]
+    shadows: ShadowMode
+    #: texels per side of each directional light's shadow map (render.shadow_map, else the default; read where
+    #: ``shadows.builds_maps``)
+    shadow_map: int
+    #: the quadrature: the preset's settings with the scene's explicit keys, before the pilot's scale
+    quadrature: Quality
+    #: whether the pilot calibrates the quadrature (renderer.calibrate: single scattering or the approximate mode,
+    #: a preset with a target, no quadrature key given, no render.error, render.calibrate on)
+    calibrate: bool
+    #: render.error: a target relative RMSE the quadrature is refined to (renderer.estimate), else None
+    error: float | None
+    #: the approximate mode's grid method: (cells, photons, deposit: kernels.fluence.FLIGHTS or COLLISIONS), the
+    #: preset's where render.grid leaves them out; None in every other mode
+    grid: tuple | None = field(default=None)
+
+    @property
+    def target(self):
+        """The relative RMSE the frame aims at: render.error where given, else the preset's (None: none)."""
+        return self.error if self.error is not None else self.preset.target
 
 
 def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
     """The settings of ``settings``' preset with its explicit keys; lengths relative to ``diagonal``, the
     scene's length L (Scene.length_scale)."""
-    preset = PRESETS[settings.quality]
+    preset = PRESETS[settings.quality].quadrature
     pick = lambda key: preset[key] if getattr(settings, key) is None else getattr(settings, key)  # noqa: E731
     max_length = preset["max_length"] * diagonal if settings.max_length is None else settings.max_length
     return Quality(tolerance=float(pick("tolerance")), max_tau=float(pick("max_tau")), max_length=float(max_length),
                    max_angle=float(pick("max_angle")), cutoff=float(pick("cutoff")),
-                   tol_t=float(pick("root_tolerance")) * diagonal,
-                   map_share={"map": math.inf, "hybrid": HYBRID_SHARE}.get(settings.shadows, 0.0),
+                   tol_t=float(pick("root_tolerance")) * diagonal, shadows=ShadowMode(settings.shadows),
                    growth=float(preset["growth"]))
 
 
-def scene_quality(scene) -> Quality:
-    return resolve_quality(scene.render, scene.length_scale())
+def preset_quality(name, diagonal, shadows=ShadowMode.EXACT) -> Quality:
+    """The preset ``name``'s own settings, no key of the scene's (the pilot's draft, the calibration's ladder)."""
+    return resolve_quality(RenderSettings(quality=name, shadows=shadows), diagonal)
+
+
+def resolve_settings(scene) -> FrameSettings:
+    """The frame's FrameSettings: every key of ``scene.render`` decided once."""
+    r = scene.render
+    preset = PRESETS[r.quality]
+    grid = None
+    if r.scattering == "approximate" and r.method == "grid":
+        cells, photons, deposit = r.grid or (None, None, "flights")
+        grid = (int(cells or preset.grid[0]), int(photons or preset.grid[1]),
+                COLLISIONS if deposit == "collisions" else FLIGHTS)
+    calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
+                 and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
+    return FrameSettings(quality=r.quality, preset=preset, shadows=ShadowMode(r.shadows),
+                         shadow_map=int(r.shadow_map or SHADOW_MAP_RESOLUTION),
+                         quadrature=resolve_quality(r, scene.length_scale()), calibrate=bool(calibrate),
+                         error=r.error, grid=grid)

@@ -25,7 +25,7 @@ from .model import Camera, Density, ImageSettings, Medium, OutputSettings, Phase
 from .atmosphere import DEFAULT_GROUND_ALBEDO, sky_mean
 from .lights import SUN_KEYS, SunLight, read_light, read_sun, unit
 from .vocabulary import (APPROXIMATE_METHODS, AUTO_EXPOSURE, DENSITY_MODES, DISPLAYS, GRID_DEPOSITS, OCTAVES,
-                         PHASE_PARAMS, QUALITIES, SCATTERING_MODES, SHADOW_MODES, WHITE_BALANCE_WORDS)
+                         PHASE_PARAMS, QUALITIES, SCATTERING_MODES, SHADOW_MODES, WHITE_BALANCE_WORDS, ShadowMode)
 
 #: an up vector closer than this (sine of the angle) to the view direction is refused
 _PARALLEL_SINE = 1e-6
@@ -143,7 +143,7 @@ def _render(top, overrides=None):
                                 check=lambda v: lim.ROOT_TOLERANCE_RANGE[0] <= v <= lim.ROOT_TOLERANCE_RANGE[1],
                                 expect="a finite number > 0, from {:g} to {:g} of the scene's diagonal".format(
                                     *lim.ROOT_TOLERANCE_RANGE)),
-        shadows=n.choice("shadows", SHADOW_MODES, "exact"),
+        shadows=ShadowMode(n.choice("shadows", SHADOW_MODES, "exact")),
         shadow_map=n.integer("shadow_map", None, **_int_range(2, lim.MAX_SHADOW_MAP)),
         colourspace=colourspace,
         scattering=n.choice("scattering", SCATTERING_MODES, "single"),

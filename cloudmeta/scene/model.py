@@ -8,7 +8,7 @@ import numpy as np
 
 from .blob import Blob, length_scale
 from .colour import DEFAULT_COLOURSPACE
-from .vocabulary import OCTAVES
+from .vocabulary import OCTAVES, ShadowMode
 from .lights import DirectionalLight, PointLight, SunLight  # noqa: F401 (the light classes, part of the schema)
 
 
@@ -66,6 +66,8 @@ class Surface:
 
 @dataclass(frozen=True)
 class RenderSettings:
+    """``render:`` as the scene gives it (None: the preset's value). What a frame renders with, every key
+    resolved against the preset once, is cloudmeta.renderer.quality.FrameSettings."""
     quality: str = "default"
     tolerance: float | None = None  #: quadrature: J's estimated error per step, relative to its largest value
     max_tau: float | None = None
@@ -73,7 +75,7 @@ class RenderSettings:
     max_angle: float | None = None  #: radians, seen from a point light
     cutoff: float | None = None
     root_tolerance: float | None = None  #: relative to the scene's bounding-box diagonal
-    shadows: str = "exact"
+    shadows: ShadowMode = ShadowMode.EXACT  #: a str too: replace(render, shadows="map") is read the same
     shadow_map: int | None = None
     colourspace: str = DEFAULT_COLOURSPACE
     scattering: str = "single"  #: single | multiple | approximate (README: multiple scattering)

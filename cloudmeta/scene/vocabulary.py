@@ -1,11 +1,14 @@
 """Every name a scene file and the command line may use, defined once: the kinds (from kernels.kinds,
-where their ids are), the quality presets and their targets, shadow and scattering modes, and the defaults
+where their ids are), the quality presets' names, shadow and scattering modes, and the defaults
 that more than one floor needs. cloudmeta.scene validates against these, the CLI builds its ``choices=``
 from them, and the renderer keys its tables by them (and asserts it covers each)."""
+from enum import StrEnum
+
 from ..kernels.kinds import DENSITY_MODES as _DENSITY_IDS
 from ..kernels.kinds import FALLOFFS as _FALLOFF_IDS
 from ..kernels.kinds import LIGHTS as _LIGHT_IDS
 from ..kernels.kinds import PHASES as _PHASE_IDS
+from ..kernels.records import SHADOW_MODES as _SHADOW_IDS
 
 #: ball kernels (falloffs k(u)), density modes, phase functions and light types, as a scene names them
 FALLOFFS = tuple(_FALLOFF_IDS)
@@ -17,16 +20,34 @@ LIGHT_TYPES = tuple(_LIGHT_IDS)
 PHASE_PARAMS = {"isotropic": (), "hg": ("g",), "double_hg": ("g1", "g2", "w"), "rayleigh": ()}
 assert tuple(PHASE_PARAMS) == PHASES
 
-#: render.quality: the quadrature presets (renderer.quality.PRESETS holds their settings)
+#: render.quality: the presets (renderer.quality.PRESETS holds what each means: its target, quadrature,
+#: calibration start and grid)
 QUALITIES = ("draft", "default", "fine", "reference")
-#: the relative RMSE, against the scattered light, that each preset aims at (docs/error_estimate.md)
-QUALITY_TARGETS = {"draft": 3e-3, "default": 1e-3, "fine": 3e-4}
-#: render.shadows: exact shadow rays; light-space maps for directional lights; or maps where their own bound
-#: on their error keeps the quality's tolerance and exact shadow rays elsewhere (hybrid)
-SHADOW_MODES = ("exact", "map", "hybrid")
+
+
+class ShadowMode(StrEnum):
+    """render.shadows: exact shadow rays; light-space maps for directional lights; or maps where their own
+    bound on their error keeps the quality's tolerance and exact shadow rays elsewhere (hybrid). A str, so a
+    scene's ``shadows == "map"`` still holds; ``kernel_id`` is what kernels.records.Quadrature.shadow_mode holds."""
+    EXACT = "exact"
+    MAP = "map"
+    HYBRID = "hybrid"
+
+    @property
+    def builds_maps(self):
+        """Whether a frame in this mode builds shadow maps (for its directional lights)."""
+        return self is not ShadowMode.EXACT
+
+    @property
+    def kernel_id(self):
+        return _SHADOW_IDS[self.value]
+
+
+SHADOW_MODES = tuple(mode.value for mode in ShadowMode)
+assert SHADOW_MODES == tuple(_SHADOW_IDS), "every shadow mode has a kernel id"
 #: render.shadows that build shadow maps
-MAP_SHADOWS = ("map", "hybrid")
-#: the share of the quality's tolerance a hybrid map's interpolation may take at a node (renderer.quality)
+MAP_SHADOWS = tuple(mode.value for mode in ShadowMode if mode.builds_maps)
+#: the share of the quality's tolerance a hybrid map's interpolation may take at a node (renderer.pack.quadrature)
 HYBRID_SHARE = 0.25
 #: render.scattering: the estimators (renderer.frame.ESTIMATORS)
 SCATTERING_MODES = ("single", "multiple", "approximate")

@@ -112,8 +112,9 @@ def test_cli_prints_the_approximations_measured_error(tmp_path):
                           "--error", "-q"], capture_output=True, text=True, cwd=tmp_path,
                          env=dict(os.environ, PYTHONPATH=str(root)))
     assert run.returncode == 0, run.stderr
-    line = run.stdout.split("against unbiased multiple scattering: ")[1]
-    printed = float(line.split()[0])
+    summary = run.stdout.splitlines()[-1]  # the render's one line gives it beside the quadrature's estimate
+    assert "estimated error" in summary and "against multiple scattering" in summary
+    printed = float(summary.split("approximation error ")[1].split()[0])
     assert printed == pytest.approx(render_frame(scene, progress=False, error=True).approximation.rel_rmse, abs=1e-3)
 
 

@@ -112,7 +112,9 @@ def test_cli_denoise_writes_the_raw_image_beside_the_denoised_one(ball, tmp_path
     plain = render_frame(ball, progress=False)
     np.testing.assert_array_equal(raw, plain.image)
     assert np.abs(image - raw).max() > 1e-4
-    assert "denoised" in capsys.readouterr().out
+    assert "multiple scattering, denoised, quality default" in capsys.readouterr().out
+    assert main(["render", str(ball.path), "-o", str(exr), "--denoise", "-q", "-v"]) == 0
+    assert "the image before it is in the EXR's channels raw.R/G/B/A" in capsys.readouterr().out
 
 
 def test_cli_denoise_refuses_a_single_scattering_scene(tmp_path, capsys):

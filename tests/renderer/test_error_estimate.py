@@ -123,10 +123,10 @@ def test_cli_writes_the_estimate_and_prints_its_rel_rmse(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     out = tmp_path / "c.exr"
     run = subprocess.run([sys.executable, "-m", "cloudmeta.cli", "render", str(ROOT / "scenes" / "cumulus.yaml"),
-                          "--width", "8", "--height", "6", "-o", str(out), "--error", "-q"],
+                          "--width", "8", "--height", "6", "-o", str(out), "--error", "-q", "-v"],
                          capture_output=True, text=True, env=env, cwd=tmp_path)
     assert run.returncode == 0, run.stderr
-    assert "estimated relative RMSE" in run.stdout
+    assert "estimated relative RMSE" in run.stdout  # -v: the estimate's line, with the channels it wrote
     back, _ = read_exr(out)
     assert back.shape == (6, 8, 7)
     s = cm.load_scene(ROOT / "scenes" / "cumulus.yaml", width=8, height=6)
@@ -136,6 +136,9 @@ def test_cli_writes_the_estimate_and_prints_its_rel_rmse(tmp_path):
     from cloudmeta.renderer import render_frame
     result = render_frame(s, progress=False, error=True)
     assert reported == pytest.approx(result.estimated, rel=1e-2)
+    # the summary gives the same estimate against the preset's target
+    summary = float(run.stdout.splitlines()[-1].split("estimated error ")[1].split()[0])
+    assert summary == pytest.approx(result.estimated, rel=1e-1) and "(target 1.0e-03)" in run.stdout.splitlines()[-1]
     # the calibration's line: the level it chose on default's ladder and the error it measured on its rays
     line = [ln for ln in run.stdout.splitlines() if "quadrature calibrated for quality default" in ln]
     assert len(line) == 1 and f"on its {8 * 6} rays" in line[0]

@@ -16,9 +16,10 @@ from cloudmeta.kernels.optics import HG, phase
 from cloudmeta.renderer import render, render_frame
 from cloudmeta.kernels.fluence import COLLISIONS, FLIGHTS
 from cloudmeta.kernels.kinds import DIRECTIONAL
-from cloudmeta.renderer.fluence import delta_split, grid_deposit, grid_settings, phase_peak, with_radiance_grid
+from cloudmeta.renderer.fluence import delta_split, phase_peak, with_radiance_grid
 from cloudmeta.renderer.multiple import render_multiple
 from cloudmeta.renderer.pack import pack_scene
+from cloudmeta.renderer.quality import resolve_settings
 from cloudmeta.scene import load_scene
 from tests.renderer.test_approximate import cloud
 
@@ -83,11 +84,15 @@ def test_bit_identical_whatever_the_thread_count(tmp_path):
 
 def test_settings(tmp_path):
     scene = cloud(tmp_path, "{quality: fine, scattering: approximate, method: grid, grid: {photons: 1000}}")
-    assert grid_settings(scene) == (56, 1000)
-    assert grid_settings(cloud(tmp_path, "{quality: draft, scattering: approximate, method: grid}"))[0] == 24
-    assert grid_deposit(scene) == FLIGHTS
-    assert grid_deposit(cloud(tmp_path, "{scattering: approximate, method: grid, grid: {deposit: collisions}}")) == \
-        COLLISIONS
+    assert resolve_settings(scene).grid == (56, 1000, FLIGHTS)
+    assert resolve_settings(cloud(tmp_path, "{quality: draft, scattering: approximate, method: grid}")).grid == \
+        (24, 1 << 21, FLIGHTS)
+    assert resolve_settings(cloud(tmp_path, "{scattering: approximate, method: grid, grid: {deposit: collisions}}")
+                            ).grid == (40, 1 << 23, COLLISIONS)
+    # reference has a grid too (fine's), and a frame in any other mode none
+    assert resolve_settings(cloud(tmp_path, "{quality: reference, scattering: approximate, method: grid}")).grid[:2] \
+        == (56, 1 << 25)
+    assert resolve_settings(cloud(tmp_path, "{quality: fine, scattering: approximate}")).grid is None
     with pytest.raises(SceneError, match=r"render\.grid\.deposit"):
         cloud(tmp_path, "{scattering: approximate, method: grid, grid: {deposit: voxels}}")
     with pytest.raises(SceneError, match=r"render\.grid\.cells"):
@@ -154,9 +159,10 @@ def test_photons_outside_the_suns_footprint_are_skipped_without_changing_the_gri
         return used[-1]
     try:
         fluence.photon_sources = spy
-        skipped = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak)
+        grid = resolve_settings(scene).grid
+        skipped = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak, grid)
         fluence.photon_sources = lambda rec, centre, radius, photons, mgrid=None: original(rec, centre, radius, photons)
-        traced = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak)
+        traced = fluence.radiance_grid(scene, records, 0, scene.camera.position, peak, grid)
     finally:
         fluence.photon_sources = original
     sun = int(np.flatnonzero(used[0].kind == DIRECTIONAL)[0])  # the directional light: part of its disk is skipped

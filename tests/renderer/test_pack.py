@@ -47,11 +47,14 @@ def test_scene_records_have_two_types_whatever_the_scene(scene, shadows):
     kernels compile without their code), both records otherwise. numba compiles at most two versions."""
     from dataclasses import replace
     s = load_scene(ROOT / scene, width=4, height=4)
+    from cloudmeta.renderer.quality import resolve_settings
     s = replace(s, render=replace(s.render, shadows=shadows))
-    quad = pack.quadrature(pack_quality())
+    quad = pack.quadrature(replace(pack_quality(), shadows=resolve_settings(s).shadows))
+    assert quad.shadow_mode == {"exact": records.SHADOWS_EXACT, "map": records.SHADOWS_MAP}[shadows]
     rec = pack.scene_records(s, quad, 8)
     full = pack.scene_records(load_scene(ROOT / "docs" / "surfaces.yaml", width=4, height=4), quad, 8)
-    lean = pack.scene_records(load_scene(ROOT / "scenes" / "single_ball.yaml", width=4, height=4), quad, 8)
+    lean = pack.scene_records(load_scene(ROOT / "scenes" / "single_ball.yaml", width=4, height=4),
+                              pack.quadrature(pack_quality()), 8)
     has_maps = shadows == "map" and bool(s.media)
     if s.surfaces or has_maps:
         assert rec.surfaces is not None and rec.lights.maps is not None

@@ -13,6 +13,7 @@ from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.errors import SceneError
 from cloudmeta.kernels.lighting import COUNT_KRONROD, COUNT_STEPS, N_COUNTS
 from cloudmeta.renderer import calibrate as pilot
+from cloudmeta.scene.vocabulary import ShadowMode
 from cloudmeta.renderer.calibrate import (CALIBRATION_RAYS, MAX_LEVEL, MIN_SIDE, MIN_TRUSTED, SHARE, STRIDE,
                                       calibrated_level, calibration_size, light_scale, pilot_size)
 
@@ -254,7 +255,7 @@ def test_hybrid_calibration_measures_against_a_reference_with_exact_shadow_rays(
     original = pilot.pilot_render
 
     def recording(scene, packed, quality, size=None):
-        seen.append((quality.map_share, quality.tolerance, size is not None))
+        seen.append((quality.shadows, quality.tolerance, size is not None))
         return original(scene, packed, quality, size)
 
     monkeypatch.setattr(pilot, "pilot_render", recording)
@@ -262,12 +263,12 @@ def test_hybrid_calibration_measures_against_a_reference_with_exact_shadow_rays(
     r = render_frame(replace(s, render=replace(s.render, shadows="hybrid")), progress=False)
     grid = [(share, tol) for share, tol, on_grid in seen if on_grid]
     reference = min(grid, key=lambda st: st[1])  # the finest tolerance: level -1
-    assert reference[0] == 0.0
-    assert all(share > 0.0 for share, tol in grid if tol > reference[1])
+    assert reference[0] == ShadowMode.EXACT
+    assert all(mode == ShadowMode.HYBRID for mode, tol in grid if tol > reference[1])
     assert r.scattered.trusted >= MIN_TRUSTED
     seen.clear()  # shadows: map interpolates everywhere, the reference too: the calibration scales the quadrature
     render_frame(replace(s, render=replace(s.render, shadows="map")), progress=False)
-    assert seen and all(share == math.inf for share, _, on_grid in seen if on_grid)
+    assert seen and all(mode == ShadowMode.MAP for mode, _, on_grid in seen if on_grid)
 
 
 def test_hybrid_calibration_that_turns_to_exact_rays_chooses_the_exact_level(monkeypatch):
@@ -276,7 +277,6 @@ def test_hybrid_calibration_that_turns_to_exact_rays_chooses_the_exact_level(mon
     by the error of lookups the frame refuses (every grid 'trusts too few' here: MIN_TRUSTED above 1). The frame then
     runs the kernel compiled for exact shadows: its records hold no maps (pack.without_maps)."""
     from cloudmeta.renderer import frame as frame_module
-from cloudmeta.renderer import calibrate as pilot
     monkeypatch.setattr(pilot, "MIN_TRUSTED", 1.01)
     maps = []
     original = frame_module.render_single

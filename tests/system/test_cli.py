@@ -11,6 +11,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
+from cloudmeta import read_exr
 from cloudmeta.cli import main
 from tests.system.children import cli_argv, signal_state
 
@@ -23,7 +24,7 @@ def test_render_cumulus_writes_exr_and_png(tmp_path, capsys):
                  "--width", "40", "--height", "30", "--quality", "draft", "-q"])
     assert code == 0
     out = capsys.readouterr().out
-    assert "40 x 30" in out and str(exr) in out and "rendered in" in out
+    assert "40 x 30" in out and str(exr) in out and str(png) in out and " s, " in out
     with OpenEXR.File(str(exr), separate_channels=True) as f:
         header = dict(f.header())
         channels = f.channels()
@@ -34,6 +35,68 @@ def test_render_cumulus_writes_exr_and_png(tmp_path, capsys):
     assert "chromaticities" in header
     assert 0 < rgba[..., 3].max() <= 1 and rgba[..., 3].min() == 0  # the cloud and the sky are both in view
     assert png.stat().st_size > 0
+
+
+def _lines(out):
+    """stdout's lines less the notice of a first compile (once per machine)."""
+    return [ln for ln in out.splitlines() if not ln.startswith("cloudmeta: compiling")]
+
+
+def test_a_render_prints_one_line_in_the_users_terms(tmp_path, capsys):
+    """What scene, how big, how long, the estimated error against its target, what was written: one line."""
+    import re
+
+    from cloudmeta.renderer import render_frame
+    from cloudmeta.scene import load_scene
+    exr, png = tmp_path / "c.exr", tmp_path / "c.png"
+    scene = str(ROOT / "scenes" / "cumulus.yaml")
+    assert main(["render", scene, "-o", str(exr), "--png", str(png), "--width", "40", "--height", "30",
+                 "--quality", "draft", "-q"]) == 0
+    lines = _lines(capsys.readouterr().out)
+    assert len(lines) == 1
+    match = re.fullmatch(rf"cloudmeta: {re.escape(scene)} 40 x 30, single scattering, quality draft: "
+                         rf"([0-9.e+-]+) s, estimated error ([0-9.e+-]+) \(target 3\.0e-03\); "
+                         rf"wrote {re.escape(str(exr))}, {re.escape(str(png))}", lines[0])
+    assert match, lines[0]
+    assert float(match[1]) > 0.0
+    # the estimate is the calibration's measure of this frame (renders are deterministic), within its target
+    result = render_frame(load_scene(scene, width=40, height=30, render={"quality": "draft"}), progress=False)
+    assert match[2] == f"{result.scattered.predicted:.1e}" and float(match[2]) <= 3e-3
+    assert "calibrated" not in lines[0] and "rays" not in lines[0]  # the details are behind -v
+
+
+def test_verbose_adds_the_details(tmp_path, capsys):
+    exr = tmp_path / "c.exr"
+    assert main(["render", str(ROOT / "scenes" / "cumulus.yaml"), "-o", str(exr), "--width", "40", "--height", "30",
+                 "--quality", "draft", "-q", "-v"]) == 0
+    lines = _lines(capsys.readouterr().out)
+    assert lines[0].startswith(f"cloudmeta: rendering {ROOT / 'scenes' / 'cumulus.yaml'}: 40 x 30, 1 spp, "
+                               "quality draft, exact shadows, 77 balls in 1 media")
+    calibrated = [ln for ln in lines if ln.startswith("cloudmeta: quadrature calibrated for quality draft: ")]
+    assert len(calibrated) == 1 and "relative RMSE" in calibrated[0] and "rays" in calibrated[0]
+    assert lines[-1].startswith(f"cloudmeta: {ROOT / 'scenes' / 'cumulus.yaml'} 40 x 30, single scattering")
+    assert lines[-1].endswith(f"; wrote {exr}") and len(lines) == 3
+
+
+@pytest.mark.parametrize("extra", [[], ["--error"]], ids=["image", "with --error"])
+def test_overwrite_on_one_image_replaces_it_and_stays_one_image(workdir, monkeypatch, capsys, extra):
+    """--overwrite means for one image what it means for frames (replace what exists), and never turns the
+    render into the frames path: each run prints the one image's line, never "frames"; --error works with it."""
+    monkeypatch.chdir(workdir)
+    (workdir / "o.exr").write_bytes(b"old")
+    for _ in range(2):
+        before = (workdir / "o.exr").stat().st_mtime_ns
+        assert main(SMALL + ["-o", "o.exr", "--overwrite", *extra]) == 0
+        out = capsys.readouterr().out
+        assert "frames" not in out and "tiles" not in out
+        assert _lines(out)[-1].startswith("cloudmeta: cumulus.yaml 8 x 8, single scattering, quality draft: ")
+        assert _lines(out)[-1].endswith("; wrote o.exr")
+        assert (workdir / "o.exr").stat().st_mtime_ns != before
+        assert (workdir / "o.exr").read_bytes()[:4] == b"\x76\x2f\x31\x01"  # the EXR magic number
+    image, _ = read_exr(workdir / "o.exr")
+    assert image.shape == (8, 8, 7 if extra else 4)  # with --error: the error channels too
+    if extra:
+        assert "estimated error" in out
 
 
 def test_bad_scene_exits_nonzero_with_the_loader_message(tmp_path):
@@ -190,7 +253,7 @@ def test_a_failing_png_leaves_no_exr(workdir, monkeypatch, capsys):
     """Both outputs are renamed into place only when both are written: a PNG that fails to encode leaves
     neither (nor a temporary file)."""
     from cloudmeta import cli
-from cloudmeta.api import io
+    from cloudmeta.api import io
 
     def broken_png(*args, **kwargs):
         raise OSError(28, "No space left on device")
@@ -282,3 +345,65 @@ def test_compile_jobs_cover_both_kinds_of_scene(tmp_path):
         kinds.add((records.surfaces is None, records.lights.maps is None, s.render.scattering))
     assert kinds == {(True, True, "single"), (False, False, "single"), (True, True, "multiple"),
                      (False, False, "multiple")}
+
+
+def test_the_summary_says_what_is_known():
+    """cli.summary, without a render: the error where estimated (the image's own estimate first, else the
+    calibration's measure), the target where the preset or render.error has one, the mode in words."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from cloudmeta.cli import summary
+    from cloudmeta.renderer.quality import resolve_settings
+    from cloudmeta.scene import load_scene
+    scene = load_scene(ROOT / "scenes" / "cumulus.yaml", width=64, height=48)
+    measured = SimpleNamespace(predicted=2.5e-4)
+
+    def line(scene, estimated=None, scattered=measured, approximation=None, took=2.345):
+        result = SimpleNamespace(settings=resolve_settings(scene), estimated=estimated, scattered=scattered,
+                                 approximation=approximation)
+        return summary("c.yaml", scene, result, took, ["c.exr"])
+
+    assert line(scene) == ("cloudmeta: c.yaml 64 x 48, single scattering, quality default: 2.35 s, estimated error "
+                           "2.5e-04 (target 1.0e-03); wrote c.exr")
+    assert "estimated error 7.0e-04 (target 1.0e-03)" in line(scene, estimated=7e-4)
+    assert "target error 1.0e-03 (not estimated; --error estimates it)" in line(scene, scattered=None)
+    with_target = replace(scene, render=replace(scene.render, error=2e-3))
+    assert "estimated error 1.5e-03 (target 2.0e-03)" in line(with_target, estimated=1.5e-3)
+    reference = replace(scene, render=replace(scene.render, quality="reference", shadows="hybrid"), image=replace(
+        scene.image, spp=4))
+    assert line(reference, scattered=None) == ("cloudmeta: c.yaml 64 x 48, 4 spp, single scattering, hybrid "
+                                               "shadows, quality reference: 2.35 s; wrote c.exr")
+    multiple = replace(scene, render=replace(scene.render, scattering="multiple"))
+    assert line(multiple, scattered=None).endswith("multiple scattering, quality default: 2.35 s; wrote c.exr")
+    approximate = replace(scene, render=replace(scene.render, scattering="approximate", method="grid"))
+    got = line(approximate, estimated=3e-4, approximation=SimpleNamespace(rel_rmse=0.1234, stderr=0.01))
+    assert ("approximate multiple scattering (grid), quality default: 2.35 s, estimated error 3.0e-04 (target "
+            "1.0e-03), approximation error 0.123 +- 0.010 against multiple scattering; wrote c.exr") in got
+
+
+def test_every_error_class_is_exported_and_listed_in_the_docs():
+    import inspect
+
+    import cloudmeta
+    from cloudmeta import errors
+    classes = [name for name, c in inspect.getmembers(errors, inspect.isclass) if issubclass(c, errors.CloudmetaError)]
+    assert sorted(classes) == ["CloudmetaError", "InputError", "OutputError", "SceneError"]
+    text = (ROOT / "docs" / "errors.md").read_text()
+    for name in classes:
+        assert name in cloudmeta.__all__ and getattr(cloudmeta, name) is getattr(errors, name)
+        assert f"| `{name}` |" in text
+
+
+def test_errors_of_the_libraries_reach_the_user_as_cloudmetas(tmp_path, capsys):
+    """OpenEXR's and dask's own exceptions do not escape: read_exr of a missing file is an InputError, and a
+    scheduler address dask cannot use ends the command line with one line, exit 2."""
+    import cloudmeta
+    with pytest.raises(cloudmeta.InputError, match="missing.exr"):
+        cloudmeta.read_exr(tmp_path / "missing.exr")
+    pytest.importorskip("distributed")
+    assert main(["render", str(ROOT / "scenes" / "cumulus.yaml"), "--frames", "1", "-o",
+                 str(tmp_path / "c_{frame}.exr"), "--scheduler", "nosuchproto://nowhere:1", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("cloudmeta: error: scheduler nosuchproto://nowhere:1: cannot connect") and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
