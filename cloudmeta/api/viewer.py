@@ -62,10 +62,10 @@ SCREENSHOT_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 #: transparent, so that thousands of centres do not hide the density slices they stand in
 BALL_MODES = ("auto", "all", "points", "none")
 BALLS_AS_SPRITES = 500
-POINTS_MAX = 2000
-POINT_SIZE, POINT_OPACITY = 2.0, 0.5
-#: with many balls the isosurface F = T is a crumpled envelope: drawn fainter, so the slices show through
-ISO_OPACITY_MANY = 0.15
+POINTS_MAX = 1000
+POINT_SIZE, POINT_OPACITY = 2.0, 0.4
+#: with many balls the colour map of sigma_t ends at this quantile of its non-zero values
+CLIM_QUANTILE = 0.98
 #: the grid | fit | difference view: picture size and the diverging colour map of the difference
 COMPARE_WINDOW = (1800, 680)
 DIFF_CMAP = "RdBu_r"
@@ -376,27 +376,41 @@ def draw_volume(plotter, scene, grid, widgets, balls="auto"):
 
     balls, count = _ball_mode(scene, balls)
     many = count > BALLS_AS_SPRITES
-    if many:  # translucent slices, isosurfaces and dots drawn in depth order, not in the order added
-        plotter.enable_depth_peeling()
     scalars, title = _density_array(grid)
     clim = _scalar_range(grid.point_data[scalars])
+    if many:  # a few peaks where thousands of balls overlap would leave the rest of the map dark
+        values = np.asarray(grid.point_data[scalars])
+        inside = values[values > 0]
+        if inside.size:
+            clim[1] = max(float(np.quantile(inside, CLIM_QUANTILE)), clim[0] + 1e-12)
     # where sigma_t = 0 the slices are almost clear, so that they do not hide the isosurfaces behind them
     opacity = np.r_[SLICE_EMPTY_OPACITY, np.full(63, 1.0)]
     style = dict(scalars=scalars, cmap=CMAP, clim=clim, opacity=opacity, scalar_bar_args=_bar(title))
+    slices = []
     if widgets:
         plotter.add_mesh_slice_orthogonal(grid, **style)
     else:
         for normal in "xyz":  # one mesh each: a MultiBlock takes no opacity transfer function
-            plotter.add_mesh(grid.slice(normal=normal, origin=grid.center), **style)
+            slices.append(grid.slice(normal=normal, origin=grid.center))
+            plotter.add_mesh(slices[-1], **style)
     plotter.add_mesh(grid.outline(), color="gray", line_width=1)
     fit = [_corners(grid)]
 
     centre_labels = set()
     for name, blob, label, colour, opacity in _things(scene):
-        iso = _contour(grid, name, blob.threshold)
-        if iso is not None:
-            plotter.add_mesh(iso, color=colour, opacity=min(opacity, ISO_OPACITY_MANY) if many else opacity,
-                             smooth_shading=True, label=label, show_scalar_bar=False)
+        if many:
+            # thousands of balls crumple F = T into layers that hide the slices even when faint: drawn as
+            # its contour lines on the (fixed) slices instead
+            for k, piece in enumerate(slices):
+                lines = _contour(piece, name, blob.threshold)
+                if lines is not None:
+                    plotter.add_mesh(lines, color=colour, line_width=1.5, show_scalar_bar=False,
+                                     label=label if k == 0 else None)
+        else:
+            iso = _contour(grid, name, blob.threshold)
+            if iso is not None:
+                plotter.add_mesh(iso, color=colour, opacity=opacity, smooth_shading=True, label=label,
+                                 show_scalar_bar=False)
         if balls != "none":
             _draw_centres(plotter, blob, balls, centre_labels)
 
