@@ -69,6 +69,7 @@ CLIM_QUANTILE = 0.98
 #: the grid | fit | difference view: picture size and the diverging colour map of the difference
 COMPARE_WINDOW = (1800, 680)
 DIFF_CMAP = "RdBu_r"
+DIFF_FLOOR = 1e-6
 
 
 # ------------------------------------------------------------------------------------------- sampling
@@ -552,15 +553,16 @@ def draw_compare(plotter, plane, axis, grid_label, fit_label):
     grid, fit, diff = (plane.point_data[k] for k in ("grid", "fit", "difference"))
     top = max(float(grid.max()), float(fit.max()))
     top = top if top > 0 else 1.0
-    spread = float(np.abs(diff).max())
-    spread = spread if spread > 0 else top
+    # differences below DIFF_FLOOR of the peak are rounding (the sampler agrees with cloudmeta.field to
+    # ~1e-12): they stay white instead of being stretched over the whole map
+    spread = max(float(np.abs(diff).max()), DIFF_FLOOR * top)
     error = float(plane.field_data["error"][0])
     where = f"{'xyz'[axis]} = {float(plane.field_data['position'][0]):.4g}"
     panels = (
         ("grid", f"grid sigma_t [1/length]", CMAP, [0.0, top], f"grid: {grid_label}\n{where}"),
         ("fit", f"fit sigma_t [1/length]", CMAP, [0.0, top], f"fit: {fit_label}\n{where}"),
         ("difference", "fit - grid [1/length]", DIFF_CMAP, [-spread, spread],
-         f"fit - grid: slice relative L2 error {error:.4f}\n{where}"),
+         f"fit - grid: slice relative L2 error {error:.3g}\n{where}"),
     )
     names = "xyz"
     titles = {f"{c}title": f"{c} [length]" for c in names if c != names[axis]}

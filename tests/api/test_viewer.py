@@ -9,7 +9,8 @@ from matplotlib.image import imread
 import cloudmeta as cm
 from cloudmeta.cli import main
 from cloudmeta.errors import InputError
-from cloudmeta.api.viewer import _cull_cells, draw_volume, sample_grid
+from cloudmeta.api.viewer import POINTS_MAX, _cull_cells, compare_slice, draw_volume, sample_grid
+from cloudmeta.fit import VoxelGrid
 from cloudmeta.kernels.grid import bin_balls
 from tests.conftest import random_blob
 
@@ -225,3 +226,183 @@ def test_the_window_view_builds_with_slice_widgets(tmp_path):
         assert len(plotter.widgets.plane_widgets) == 3
     finally:
         plotter.close()
+
+
+# ------------------------------------------------------------------------------------------ many balls
+
+def many_balls_scene(tmp_path, n=3000, seed=5):
+    """SCENE's camera and lights with ``n`` small random balls (a few carving) in a 6 x 6 x 3 box."""
+    rng = np.random.default_rng(seed)
+    scene = yaml.safe_load(yaml.safe_dump(SCENE))
+    centres = rng.uniform([-3, -3, 0], [3, 3, 3], (n, 3))
+    weights = np.where(rng.random(n) < 0.1, -0.3, 1.0)
+    scene["media"][0]["balls"] = [{"center": [float(v) for v in c], "radius": 0.5, "weight": float(w)}
+                                  for c, w in zip(centres, weights)]
+    return cm.load_scene(write_scene(tmp_path, scene, "many.yaml"))
+
+
+def centre_actors(plotter):
+    return [a for name, a in plotter.actors.items() if name.startswith("centres:")]
+
+
+@pytest.mark.parametrize("balls", ["auto", "points", "all", "none"])
+def test_many_balls_are_never_a_sphere_each(tmp_path, balls):
+    scene = many_balls_scene(tmp_path)
+    n = len(scene.media[0].blob.weights)
+    plotter = pv.Plotter(off_screen=True)
+    try:
+        draw_volume(plotter, scene, sample_grid(scene, 24), widgets=False, balls=balls)
+        actors = centre_actors(plotter)
+        points = sum(a.mapper.dataset.n_points for a in actors)
+        meshes = [(a, a.mapper.dataset) for a in plotter.actors.values()
+                  if isinstance(getattr(getattr(a, "mapper", None), "dataset", None), pv.DataSet)]
+        # all the meshes together, slices included, hold fewer points than a 50-point sphere a ball would
+        assert len(plotter.actors) < 30 and sum(m.n_points for _, m in meshes) < 50 * n
+        # no translucent isosurface: above BALLS_AS_SPRITES balls F = T is lines on the slices
+        surfaces = [m for a, m in meshes if a.prop.opacity < 1 and isinstance(m, pv.PolyData) and m.n_faces]
+        assert surfaces == []
+        assert any(isinstance(m, pv.PolyData) and m.n_lines > 100 for _, m in meshes)
+        if balls == "none":
+            assert actors == []
+        elif balls == "all":
+            assert points == n and len(actors) == 2  # white and red, each one point cloud
+            assert all(a.prop.render_points_as_spheres for a in actors)
+        else:  # auto resolves to points above BALLS_AS_SPRITES
+            assert 0 < points <= POINTS_MAX < n
+            assert all(not a.prop.render_points_as_spheres and a.prop.point_size <= 2
+                       and a.prop.opacity < 1 for a in actors)
+    finally:
+        plotter.close()
+
+
+def test_few_balls_are_all_drawn_round(tmp_path):
+    scene = cm.load_scene(write_scene(tmp_path))
+    plotter = pv.Plotter(off_screen=True)
+    try:
+        draw_volume(plotter, scene, sample_grid(scene, 24), widgets=False)
+        actors = centre_actors(plotter)
+        assert sum(a.mapper.dataset.n_points for a in actors) == 3
+        assert all(a.prop.render_points_as_spheres for a in actors)
+    finally:
+        plotter.close()
+
+
+def test_many_balls_screenshot(tmp_path, capsys):
+    many_balls_scene(tmp_path, n=800)
+    png = tmp_path / "many.png"
+    assert main(["inspect", str(tmp_path / "many.yaml"), "--screenshot", str(png), "--resolution", "24"]) == 0
+    assert_picture(png)
+
+
+# ------------------------------------------------------------------------------- grid | fit | difference
+
+def grid_of_scene(tmp_path, bump=0.0, name="grid.npz"):
+    """A voxel grid whose density is SCENE's sigma_t (mode field, scale 2.5) at the voxel centres, plus
+    ``bump`` on a block of voxels at x > 0, y > 0 of the middle z layers. Returns (path, VoxelGrid)."""
+    shape, lower, upper = (24, 20, 16), np.array([-2.0, -2.0, -1.0]), np.array([2.8, 2.0, 2.2])
+    h = (upper - lower) / np.array(shape)
+    axes = [lower[a] + (np.arange(shape[a]) + 0.5) * h[a] for a in range(3)]
+    points = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    blob = cm.load_scene(write_scene(tmp_path)).media[0].blob
+    f = cm.field(blob, points).reshape(shape)
+    density = np.where(f >= 0.5, 2.5 * f, 0.0)
+    density[14:18, 12:16, 6:9] += bump  # x in [0.8, 1.6), y in [0.4, 1.2), z layers 6 to 8
+    path = tmp_path / name
+    np.savez(path, density=density, lower=lower, upper=upper)
+    return str(path), VoxelGrid(density, lower, upper, str(path), "density", "")
+
+
+def test_compare_slice_is_the_difference_point_by_point(tmp_path):
+    scene = cm.load_scene(write_scene(tmp_path))
+    _, exact = grid_of_scene(tmp_path)
+    plane = compare_slice(scene, exact, 2, 0.3)
+    layer = int(plane.field_data["layer"][0])
+    assert layer == 6 and plane.dimensions == (24, 20, 1)  # z = 0.3 lies in layer floor(1.3 / 0.2)
+    np.testing.assert_allclose(plane.field_data["position"][0], -1.0 + 6.5 * 0.2, rtol=1e-14)
+    np.testing.assert_array_equal(plane.point_data["grid"], exact.density[:, :, 6].ravel(order="F"))
+    np.testing.assert_allclose(plane.point_data["difference"], 0.0, atol=1e-11)
+    assert plane.field_data["error"][0] < 1e-11
+
+    _, bumped = grid_of_scene(tmp_path, bump=1.0, name="bumped.npz")
+    plane = compare_slice(scene, bumped, 2, 0.3)
+    diff = plane.point_data["difference"].reshape(20, 24).T  # (x, y)
+    block = np.zeros((24, 20), dtype=bool)
+    block[14:18, 12:16] = True
+    np.testing.assert_allclose(diff[block], -1.0, atol=1e-11)
+    np.testing.assert_allclose(diff[~block], 0.0, atol=1e-11)
+    grid = bumped.density[:, :, 6]
+    np.testing.assert_allclose(plane.field_data["error"][0], 4.0 / np.linalg.norm(grid), rtol=1e-9)
+    # default plane: the middle of the box along z
+    assert int(compare_slice(scene, bumped).field_data["layer"][0]) == 8
+
+
+def panels(path):
+    """The three panels of a compare screenshot, cropped to the plane's area (below the titles, above
+    the colour bars), as float RGB."""
+    image = imread(path)[..., :3]
+    h, w = image.shape[:2]
+    third = w // 3
+    return [image[int(0.15 * h):int(0.75 * h), k * third:(k + 1) * third] for k in range(3)]
+
+
+def test_compare_screenshot_panels_differ_where_the_fit_differs(tmp_path, capsys):
+    scene = write_scene(tmp_path)
+    exact, _ = grid_of_scene(tmp_path)
+    bumped, _ = grid_of_scene(tmp_path, bump=1.5, name="bumped.npz")
+    pictures = {}
+    for label, grid in (("exact", exact), ("bumped", bumped)):
+        png = tmp_path / f"{label}.png"
+        assert main(["inspect", scene, "--grid", grid, "--slice", "z=0.3", "--screenshot", str(png)]) == 0
+        out = capsys.readouterr().out
+        assert "slice relative L2 error" in out and f"wrote {png}" in out
+        assert_picture(png)
+        pictures[label] = panels(png)
+    grid, fit, diff = pictures["exact"]
+    # same slice, same colours, same place (but for a few pixels of the axes' anti-aliased labels)
+    assert (np.abs(grid - fit).max(axis=2) > 0.05).sum() < 20
+    plane = diff.min(axis=2) > 0.9  # the difference's plane is white all over: no difference
+    assert plane.sum() > 0.4 * plane.size
+    reddish = lambda p: p[..., 0] - p[..., 2]
+    grid, fit, diff = pictures["bumped"]
+    changed = np.abs(grid - fit).max(axis=2) > 0.05
+    assert changed.sum() > 100 and (changed & ~plane).sum() < 20  # on the plane only
+    # the grid holds more than the fit in the block: blue (fit - grid < 0) there, and only there
+    blue = plane & (reddish(diff) < -0.3)
+    assert blue.sum() > 100
+    rows, cols = np.nonzero(blue)
+    crows, ccols = np.nonzero(changed)
+    assert abs(rows.mean() - crows.mean()) < 10 and abs(cols.mean() - ccols.mean()) < 10
+    assert (plane & (reddish(diff) > 0.3)).sum() == 0  # nowhere is the fit above the grid
+    assert (plane & ~blue).sum() > 0.8 * plane.sum()  # and elsewhere the plane stays white
+    assert (diff[plane & ~blue].min(axis=1) > 0.85).mean() > 0.95
+    # the block is at x > 0.8, y > 0.4: right of and above the middle of the panel
+    assert ccols.mean() > changed.shape[1] / 2 and crows.mean() < changed.shape[0] / 2
+
+
+def test_compare_save_writes_the_three_arrays(tmp_path, capsys):
+    grid, _ = grid_of_scene(tmp_path, bump=1.0)
+    vti = tmp_path / "slice.vti"
+    assert main(["inspect", write_scene(tmp_path), "--grid", grid, "--save", str(vti),
+                 "--screenshot", str(tmp_path / "x.png")]) == 0
+    back = pv.read(vti)
+    assert set(back.point_data.keys()) == {"grid", "fit", "difference"}
+    np.testing.assert_allclose(back.point_data["difference"], back.point_data["fit"] - back.point_data["grid"])
+
+
+@pytest.mark.parametrize("extra,message", [
+    (["--grid", "no_such_grid.npz"], "no_such_grid.npz: no such file"),
+    (["--grid", "grid.txt"], "unknown voxel file type"),
+    (["--var", "density"], "--var"),
+    (["--grid", "GRID", "--slice", "z=5"], "outside the grid"),
+    (["--grid", "GRID", "--var", "nothing"], "nothing"),
+])
+def test_bad_grid_is_one_line_exit_2(tmp_path, capsys, extra, message):
+    grid, _ = grid_of_scene(tmp_path)
+    (tmp_path / "grid.txt").write_text("1 2 3")
+    extra = [grid if e == "GRID" else str(tmp_path / e) if e.startswith(("no_such", "grid.")) else e
+             for e in extra]
+    png = tmp_path / "x.png"
+    assert main(["inspect", write_scene(tmp_path), *extra, "--screenshot", str(png)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("cloudmeta: error: ") and message in err
+    assert not png.exists()
