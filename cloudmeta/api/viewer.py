@@ -424,7 +424,8 @@ def draw_volume(plotter, scene, grid, widgets, balls="auto"):
         distance = float(np.linalg.norm(cam.look_at - cam.position))
     frustum = _camera_frustum(cam, scene.image.width, scene.image.height, distance)
     plotter.add_mesh(frustum, color="orange", line_width=2, label="camera")
-    fit.append(frustum.points)
+    if not many:  # with many balls the view fits the cloud, and the frustum runs out of it towards the eye
+        fit.append(frustum.points)
 
     for k, light in enumerate(scene.lights):
         if isinstance(light, DirectionalLight):
@@ -442,7 +443,9 @@ def draw_volume(plotter, scene, grid, widgets, balls="auto"):
         plotter.add_mesh(glyph, color=colour, label="lights" if k == 0 else None, show_scalar_bar=False)
         fit.append(_corners(glyph))
 
-    plotter.add_legend(bcolor=(0.1, 0.1, 0.12), border=True, size=(0.2, 0.16), loc="upper left", face=None)
+    # with many balls the view is closer, and the light's arrow may stand in the upper left
+    plotter.add_legend(bcolor=(0.1, 0.1, 0.12), border=True, size=(0.2, 0.16),
+                       loc="lower right" if many else "upper left", face=None)
     plotter.show_axes()
     # seen from the scene camera's right, a little beyond the scene and above: the frustum runs across the
     # picture from the eye to the scene, and the slices face the viewer at an angle
@@ -543,8 +546,8 @@ def compare_slice(scene, voxels, axis=2, value=None):
 
 
 def _panel_bar(title):
-    return dict(title=title, color="white", title_font_size=16, label_font_size=13, fmt="%.3g", n_labels=5,
-                vertical=False, position_x=0.15, position_y=0.01, height=0.12, width=0.7)
+    return dict(title=title, color="white", title_font_size=8, label_font_size=13, fmt="%.3g", n_labels=5,
+                vertical=False, position_x=0.15, position_y=0.02, height=0.1, width=0.7)
 
 
 def draw_compare(plotter, plane, axis, grid_label, fit_label):
@@ -559,10 +562,10 @@ def draw_compare(plotter, plane, axis, grid_label, fit_label):
     error = float(plane.field_data["error"][0])
     where = f"{'xyz'[axis]} = {float(plane.field_data['position'][0]):.4g}"
     panels = (
-        ("grid", f"grid sigma_t [1/length]", CMAP, [0.0, top], f"grid: {grid_label}\n{where}"),
-        ("fit", f"fit sigma_t [1/length]", CMAP, [0.0, top], f"fit: {fit_label}\n{where}"),
-        ("difference", "fit - grid [1/length]", DIFF_CMAP, [-spread, spread],
-         f"fit - grid: slice relative L2 error {error:.3g}\n{where}"),
+        ("grid", f"sigma_t [1/length] at {where}", CMAP, [0.0, top], f"grid: {grid_label}"),
+        ("fit", f"sigma_t [1/length] at {where}", CMAP, [0.0, top], f"fit: {fit_label}"),
+        ("difference", f"fit - grid [1/length] at {where}", DIFF_CMAP, [-spread, spread],
+         f"slice relative L2 error {error:.3g}"),
     )
     names = "xyz"
     titles = {f"{c}title": f"{c} [length]" for c in names if c != names[axis]}
@@ -570,9 +573,11 @@ def draw_compare(plotter, plane, axis, grid_label, fit_label):
     for column, (array, bar, cmap, clim, text) in enumerate(panels):
         plotter.subplot(0, column)
         # unlit, so that the colours are the map's (the difference's 0 is white, not shaded grey)
+        # the bar's title (blank, one per panel: pyvista keys bars by title) would sit on its numbers; the
+        # quantity and unit are in the panel's title instead
         plotter.add_mesh(plane.copy(), scalars=array, cmap=cmap, clim=clim, lighting=False,
-                         scalar_bar_args=_panel_bar(bar))
-        plotter.add_text(text, position="upper_edge", font_size=11, color="white")
+                         scalar_bar_args=_panel_bar(" " * (column + 1)))
+        plotter.add_text(f"{text}\n{bar}", position="upper_edge", font_size=11, color="white")
         plotter.show_bounds(bounds=plane.bounds, color="white", font_size=9, location="outer", **titles)
         (plotter.view_yz, plotter.view_xz, plotter.view_xy)[axis]()
         plotter.reset_camera()
