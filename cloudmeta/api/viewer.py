@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .io import atomic_output
 from .rays import blob_record
 from ..errors import InputError
 from ..kernels.density import rho_value
@@ -643,7 +644,8 @@ def inspect_command(args):
         grid = sample_grid(scene, resolution)
         print(f"cloudmeta: sampled {args.scene}: {_describe_grid(grid)}")
     if save is not None:
-        grid.save(save)
+        with atomic_output(save) as tmp:
+            grid.save(tmp)
         print(f"cloudmeta: wrote {save} (arrays: {', '.join(grid.point_data.keys())})")
     if not window and screenshot is None:
         return 0
@@ -662,7 +664,8 @@ def inspect_command(args):
         else:
             draw_volume(plotter, scene, grid, widgets=screenshot is None, balls=balls)
         if screenshot is not None:
-            plotter.screenshot(screenshot)
+            with atomic_output(screenshot) as tmp:
+                plotter.screenshot(tmp)
             print(f"cloudmeta: wrote {screenshot}")
         else:
             plotter.show(title=f"cloudmeta inspect {args.scene}")
@@ -691,7 +694,8 @@ def _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, s
           f"{voxels.shape[axis]} ({'xyz'[axis]} = {float(compared.field_data['position'][0]):.4g}), slice relative "
           f"L2 error {error:.4f}")
     if save is not None:
-        compared.save(save)
+        with atomic_output(save) as tmp:
+            compared.save(tmp)
         print(f"cloudmeta: wrote {save} (arrays: {', '.join(compared.point_data.keys())})")
     if not window and screenshot is None:
         return 0
@@ -707,7 +711,8 @@ def _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, s
             plotter.set_background((0.08, 0.09, 0.12), top=(0.30, 0.34, 0.42))
         draw_compare(plotter, compared, axis, grid_label, f"{Path(args.scene).name} ({count:,} balls)")
         if screenshot is not None:
-            plotter.screenshot(screenshot)
+            with atomic_output(screenshot) as tmp:
+                plotter.screenshot(tmp)
             print(f"cloudmeta: wrote {screenshot}")
         else:
             plotter.show(title=f"cloudmeta inspect {args.scene} --grid {grid_path}")
