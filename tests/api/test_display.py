@@ -171,7 +171,7 @@ def test_cli_display_flags(tmp_path, capsys):
     from cloudmeta.api.io import read_exr
     linear = read_exr(tmp_path / "b.exr")[0].astype(np.float64)
     np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "b.png")), encode_srgb(linear[..., :3], 1.5))
-    assert main(common + ["-o", str(tmp_path / "c.exr"), "--png", str(tmp_path / "c.png"),
+    assert main(common + ["-v", "-o", str(tmp_path / "c.exr"), "--png", str(tmp_path / "c.png"),
                           "--white-balance", "D50", "--exposure", "auto"]) == 0
     assert "white balance D50, exposure auto" in capsys.readouterr().out
 
