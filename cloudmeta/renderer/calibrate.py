@@ -17,7 +17,7 @@ The pilot depends on the whole frame alone, never on a tile, a thread count or a
 frame gets the same tolerance and renders stay bit-identical. A pilot that sees no scattered light gives
 scale 0. The quadrature then falls back to a tolerance relative to each ray's brightest J.
 
-**Calibration** (issue #23: the preset is a target, checked on the scene at hand rather than tuned on a
+**Calibration** (the preset is a target, checked on the scene at hand rather than tuned on a
 suite). A preset's fixed settings keep its target on the hardest scenes of the accuracy suite, so they do
 several times too much work on easy ones: the shipped cumulus at ``default`` lands at 1.2e-4 against its 1e-3.
 Where FrameSettings.calibrate holds, a calibration grid of the frame's rays (``calibration_size``) is rendered on one
@@ -77,7 +77,7 @@ NARROW = 0.25
 WORTH = 1.5
 #: where level 1 fails, the first try below it is aimed as if the error grew GROWTH times a step (the tolerance's own
 #: factor); only where that try fails too is level 0 rendered. At 512 x 512 the grid's error grew 3.45x / 3.0x / 2.6x
-#: from level 0 to 1 on the front-lit cumulus, the back-lit one and the bank (2026-12-05)
+#: from level 0 to 1 on the front-lit cumulus, the back-lit one and the bank
 GROWTH = 3.0
 #: calibrated frames take their settings on one ladder: LADDER's preset scaled by 3^level / 2^level, each preset
 #: starting at its own level (renderer.quality.Preset.start)
@@ -86,7 +86,7 @@ LADDER = "default"
 PILOT = "draft"
 #: ``shadows: hybrid``: where the calibration's grid, at the level chosen, trusted fewer than this share of its map
 #: lookups, the frame traces exact shadow rays instead (more accurate, never less). A failed lookup costs its time on
-#: top of the exact ray, a small fraction of it: at 512 x 512 (2026-12-05) the front-lit cumulus, trusting 25 %,
+#: top of the exact ray, a small fraction of it: at 512 x 512 the front-lit cumulus, trusting 25 %,
 #: rendered in 0.84x the time of exact shadows; the 1,200-ball bank, trusting 0.5 %, gained nothing
 MIN_TRUSTED = 0.1
 #: where more than this share of the calibration reference's steps took the Kronrod nodes, the search runs on the

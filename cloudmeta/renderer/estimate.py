@@ -1,4 +1,4 @@
-"""The error estimate of a render and error-controlled rendering (docs/error_estimate.md, issue #11).
+"""The error estimate of a render and error-controlled rendering (docs/error_estimate.md).
 
 A render's error is estimated as its difference to a second render of the same scene with every quadrature
 setting coarser (``COARSER``): where the quadrature converges, that difference is of the size of the

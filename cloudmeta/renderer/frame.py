@@ -99,7 +99,7 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     """Render the scene (or the tile ``rows`` x ``columns`` of it) into a RenderResult; see ``render``.
     With ``denoise=True`` (multiple scattering, a whole frame) the paths' part is denoised
     (renderer.denoise) and ``raw`` keeps the image before it."""
-    if not isinstance(scene, Scene):  # issue #15: the API's wrong types are InputErrors naming the argument
+    if not isinstance(scene, Scene):  # the API's wrong types are InputErrors naming the argument
         raise InputError(f"scene: expected a cloudmeta Scene (from load_scene), got {type(scene).__name__}")
     if not isinstance(denoise, (bool, np.bool_)):
         raise InputError(f"denoise: expected True or False, got {denoise!r}")

@@ -42,9 +42,8 @@ Each step of the in-scattering integral takes 7 Gauss nodes; where the two highe
 of J on them exceed the tolerance (a tenth of them counts where the nodes' shadow rays show no fold of the
 light's optical depth: kernels.single.TAIL_SHARE), the 8 Kronrod nodes join (G7-K15), and where the two rules
 still disagree by more than the tolerance allows the step is split (at most 6 halvings deep). A step seen through a view
-transmittance e^-u adds its error to the image times e^-u, so the step limits grow as e^(growth u) (issue #23
-item 3: on the 77-ball cumulus at 256 x 256 this took 1.6-1.9x fewer nodes at equal error, on the 1,200-ball
-bank none; docs/error_estimate.md "Steps that grow with depth"); ``reference`` keeps equal steps. The optical
+transmittance e^-u adds its error to the image times e^-u, so the step limits grow as e^(growth u) (on the 77-ball cumulus at 256 x 256 this took 1.6-1.9x fewer nodes at equal error, on the 1,200-ball
+bank none; CHANGELOG.md "Steps that grow with depth"); ``reference`` keeps equal steps. The optical
 depth, the view transmittance and the shadow transmittance are exact at every setting; the settings only trade the
 quadrature of the in-scattering integral against time.
 
@@ -83,7 +82,7 @@ class Preset:
 #: the presets: each is a target of the image's RMSE over its mean scattered radiance
 #: (draft 3e-3, default 1e-3, fine 3e-4), with ``tolerance`` equal to the target (relative to the pilot's
 #: scattered-light scale). max_tau and cutoff were chosen as the cheapest on the 14 scenes of the accuracy
-#: suite that kept every scene at or below half its target (docs/error_estimate.md "Presets"); the six
+#: suite that kept every scene at or below half its target (docs/settings.md "The presets"); the six
 #: black-background scenes of the suite were held out of that choice. The calibration starts draft one step
 #: coarser than default's settings and fine one finer (draft's fixed settings are about one step coarser than
 #: default's, fine's one finer; on the cumulus at 256 x 256 fine's own settings, calibrated, took 3.5 s where

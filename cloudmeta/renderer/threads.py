@@ -15,7 +15,7 @@ from ..errors import InputError
 #: the image is cut into bands of rows, about this many per thread (uneven rows balance out) and no
 #: taller than MAX_BAND_ROWS; the progress bar moves once per band. With 16 bands of 16 rows a thread, the other
 #: thread waited 2-3.5 % of the cumulus's frame at 512 x 512 for the last band; 32 of 8 took 1.1-1.4 % less time
-#: (the bank: +0.4 %, within noise; 2026-12-05)
+#: (the bank: +0.4 %, within noise; docs/benchmarks.md)
 BANDS_PER_THREAD = 32
 MAX_BAND_ROWS = 8
 

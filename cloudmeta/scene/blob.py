@@ -228,7 +228,7 @@ def length_scale(bounds):
     ``bounds`` (N, 6) = [lo, hi]: the largest bounding-box diagonal among the groups that far gaps separate.
     The balls are split, axis by axis and again within each part, wherever the gap between the parts is
     more than FAR_GAP times wider than either part along that axis; a stray ball far from a cloud then does
-    not loosen the cloud's tolerances (issue #27). Without such a gap this is the diagonal itself, bit for
+    not loosen the cloud's tolerances. Without such a gap this is the diagonal itself, bit for
     bit."""
     bounds = np.asarray(bounds, np.float64)
     lo_all, hi_all = bounds[:, :3].min(axis=0), bounds[:, 3:].max(axis=0)
