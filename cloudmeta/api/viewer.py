@@ -71,6 +71,8 @@ CLIM_QUANTILE = 0.98
 COMPARE_WINDOW = (1800, 680)
 DIFF_CMAP = "RdBu_r"
 DIFF_FLOOR = 1e-6
+#: voxels of empty margin kept around the cloud in the grid | fit | difference panels
+COMPARE_MARGIN = 3
 
 
 # ------------------------------------------------------------------------------------------- sampling
@@ -547,19 +549,60 @@ def compare_slice(scene, voxels, axis=2, value=None):
 
 
 def _panel_bar(title):
-    return dict(title=title, color="white", title_font_size=8, label_font_size=13, fmt="%.3g", n_labels=5,
+    return dict(title=title, color="white", title_font_size=8, label_font_size=13, fmt="%.3g",
                 vertical=False, position_x=0.15, position_y=0.02, height=0.1, width=0.7)
+
+
+def _nice_range(top, lowest_steps):
+    """(end, labels): the least end >= ``top`` that is a whole number of steps (from ``lowest_steps`` to
+    twice that) of 1, 2, 2.5 or 5 x 10^k, and the number of ticks from 0 to it, so that a colour bar's
+    ticks fall on round numbers."""
+    best = None
+    k0 = int(np.floor(np.log10(top)))
+    for k in range(k0 - 2, k0 + 2):
+        for m in (1.0, 2.0, 2.5, 5.0):
+            step = m * 10.0 ** k
+            steps = int(np.ceil(top / step * (1 - 1e-9)))
+            if lowest_steps <= steps <= 2 * lowest_steps and (best is None or steps * step < best[0]):
+                best = (steps * step, steps + 1)
+    return best if best is not None else (top, lowest_steps + 1)
+
+
+def _occupied(plane, axis, margin=COMPARE_MARGIN):
+    """The part of ``plane`` where the grid or the fit is non-zero, grown by ``margin`` voxels (the whole
+    plane where both are zero), so that the panels show the cloud rather than the empty box around it."""
+    dims = np.array(plane.dimensions)
+    full = tuple(dims.astype(int))
+    busy = ((plane.point_data["grid"] > 0) | (plane.point_data["fit"] > 0)).reshape(full[::-1]).T
+    if not busy.any():
+        return plane
+    voi = []
+    for a in range(3):
+        if dims[a] == 1:
+            voi += [0, 0]
+            continue
+        other = tuple(b for b in range(3) if b != a)
+        hit = np.nonzero(busy.any(axis=other))[0]
+        voi += [max(0, int(hit[0]) - margin), min(int(dims[a]) - 1, int(hit[-1]) + margin)]
+    part = plane.extract_subset(voi)
+    for name in ("grid", "fit", "difference"):  # extract_subset keeps the arrays; make sure of their names
+        assert name in part.point_data
+    return part
 
 
 def draw_compare(plotter, plane, axis, grid_label, fit_label):
     """Three panels on a 1 x 3 ``plotter``: the grid's slice, the fit's, and fit - grid (a diverging map,
-    its range symmetric about 0), each seen straight along ``axis``, the same extent in each."""
+    its range symmetric about 0), each seen straight along ``axis``, the same extent in each: the part of
+    the layer that holds the cloud (the error in the title is the whole layer's)."""
     grid, fit, diff = (plane.point_data[k] for k in ("grid", "fit", "difference"))
     top = max(float(grid.max()), float(fit.max()))
     top = top if top > 0 else 1.0
     # differences below DIFF_FLOOR of the peak are rounding (the sampler agrees with cloudmeta.field to
     # ~1e-12): they stay white instead of being stretched over the whole map
     spread = max(float(np.abs(diff).max()), DIFF_FLOOR * top)
+    top, top_labels = _nice_range(top, 4)
+    spread, half_labels = _nice_range(spread, 2)
+    plane = _occupied(plane, axis)
     error = float(plane.field_data["error"][0])
     where = f"{'xyz'[axis]} = {float(plane.field_data['position'][0]):.4g}"
     panels = (
@@ -576,8 +619,10 @@ def draw_compare(plotter, plane, axis, grid_label, fit_label):
         # unlit, so that the colours are the map's (the difference's 0 is white, not shaded grey)
         # the bar's title (blank, one per panel: pyvista keys bars by title) would sit on its numbers; the
         # quantity and unit are in the panel's title instead
+        bar_args = _panel_bar(" " * (column + 1))
+        bar_args["n_labels"] = top_labels if column < 2 else 2 * half_labels - 1
         plotter.add_mesh(plane.copy(), scalars=array, cmap=cmap, clim=clim, lighting=False,
-                         scalar_bar_args=_panel_bar(" " * (column + 1)))
+                         scalar_bar_args=bar_args)
         plotter.add_text(f"{text}\n{bar}", position="upper_edge", font_size=11, color="white")
         plotter.show_bounds(bounds=plane.bounds, color="white", font_size=9, location="outer", **titles)
         (plotter.view_yz, plotter.view_xz, plotter.view_xy)[axis]()

@@ -9,7 +9,7 @@ from matplotlib.image import imread
 import cloudmeta as cm
 from cloudmeta.cli import main
 from cloudmeta.errors import InputError
-from cloudmeta.api.viewer import POINTS_MAX, _cull_cells, compare_slice, draw_volume, sample_grid
+from cloudmeta.api.viewer import POINTS_MAX, _cull_cells, _nice_range, compare_slice, draw_volume, sample_grid
 from cloudmeta.fit import VoxelGrid
 from cloudmeta.kernels.grid import bin_balls
 from tests.conftest import random_blob
@@ -406,3 +406,10 @@ def test_bad_grid_is_one_line_exit_2(tmp_path, capsys, extra, message):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("cloudmeta: error: ") and message in err
     assert not png.exists()
+
+
+@pytest.mark.parametrize("top,lowest,end,labels", [(4.01, 4, 5.0, 6), (0.0796, 2, 0.08, 5), (2.36, 4, 2.5, 6),
+                                                   (47.2, 4, 50.0, 6), (1.0, 4, 1.0, 6)])
+def test_colour_bars_end_on_round_numbers(top, lowest, end, labels):
+    got_end, got_labels = _nice_range(top, lowest)
+    assert got_end == pytest.approx(end, rel=1e-12) and got_labels == labels and got_end >= top
