@@ -413,3 +413,29 @@ def test_bad_grid_is_one_line_exit_2(tmp_path, capsys, extra, message):
 def test_colour_bars_end_on_round_numbers(top, lowest, end, labels):
     got_end, got_labels = _nice_range(top, lowest)
     assert got_end == pytest.approx(end, rel=1e-12) and got_labels == labels and got_end >= top
+
+
+def test_compare_a_fit_of_an_openvdb_file(tmp_path, capsys):
+    # a small fit of a grid written by OpenVDB itself; the fit's own density check (fit.error.grid_field,
+    # the balls summed voxel by voxel) gives the same fitted slice as the viewer's culled sampler
+    from cloudmeta.fit import read_grid
+    from cloudmeta.fit.error import grid_field
+
+    vdb = "tests/data/vdb/cloud_half.vdb"
+    scene_path = str(tmp_path / "fit.yaml")
+    cm.fit_volume(vdb, scene_path, balls=400, rays=200)
+    vti, png = tmp_path / "slice.vti", tmp_path / "fit.png"
+    assert main(["inspect", scene_path, "--grid", vdb, "--slice", "y=11", "--save", str(vti),
+                 "--screenshot", str(png)]) == 0
+    assert "slice relative L2 error" in capsys.readouterr().out
+    assert_picture(png)
+    voxels = read_grid(vdb)
+    medium = cm.load_scene(scene_path).media[0]
+    layer = int((11 - voxels.lower[1]) // voxels.voxel[1])
+    expected = medium.density.scale * grid_field(medium.blob, voxels.shape, voxels.lower, voxels.upper)[:, layer, :]
+    back = pv.read(vti)
+    assert back.dimensions == (24, 1, 16)
+    np.testing.assert_allclose(back.point_data["fit"], expected.ravel(order="F"), rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(back.point_data["grid"], voxels.density[:, layer, :].ravel(order="F"))
+    error = np.linalg.norm(back.point_data["difference"]) / np.linalg.norm(back.point_data["grid"])
+    assert 0.01 < error < 0.5  # a fit of 400 balls: close, not exact
