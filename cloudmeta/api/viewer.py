@@ -7,7 +7,10 @@ same points.
 
 ``inspect_command`` draws three orthogonal slices of sigma_t (movable with widgets in a window), the
 isosurface F = T of every blob, the ball centres, the camera frustum and the lights; ``--slice z=2.0``
-draws one plane instead, coloured by sigma_t with the contour F = T on it.
+draws one plane instead, coloured by sigma_t with the contour F = T on it. Above BALLS_AS_SPRITES balls the
+centres are a sample of small dots and F = T is drawn as lines on the slices, so that the slices stay
+visible (``--balls``). ``--grid GRID`` draws a layer of a voxel grid, the scene's sigma_t at the same voxel
+centres and their difference side by side (``compare_slice``, ``draw_compare``; docs/inspect.md).
 
 Off screen (``--screenshot``) no display and no X server (nor Xvfb) is needed. VTK's Linux wheels (9.4
 and later) choose an OpenGL window at run time: X when ``DISPLAY`` is set, else EGL, else OSMesa. EGL
