@@ -408,11 +408,18 @@ def draw_volume(plotter, scene, grid, widgets, balls="auto"):
         if many:
             # thousands of balls crumple F = T into layers that hide the slices even when faint: drawn as
             # its contour lines on the (fixed) slices instead
+            forward, right, up = camera_frame(scene.camera)
+            towards_viewer = right + VIEW_BEYOND * forward + VIEW_ABOVE * up
+            diagonal = float(np.linalg.norm(np.ptp(np.array(grid.bounds).reshape(3, 2), axis=1)))
             for k, piece in enumerate(slices):
                 lines = _contour(piece, name, blob.threshold)
                 if lines is not None:
-                    plotter.add_mesh(lines, color=colour, line_width=1.5, show_scalar_bar=False,
-                                     label=label if k == 0 else None)
+                    # lifted a hair off the slice towards the viewer: the slice, drawn after them as
+                    # translucent, would cover lines that lie in it
+                    lift = np.zeros(3)
+                    lift[k] = (1.0 if towards_viewer[k] >= 0 else -1.0) * 2e-3 * diagonal
+                    plotter.add_mesh(lines.translate(lift, inplace=False), color=colour, line_width=1.5,
+                                     show_scalar_bar=False, label=label if k == 0 else None)
         else:
             iso = _contour(grid, name, blob.threshold)
             if iso is not None:
