@@ -324,7 +324,7 @@ def build_parser():
     i.add_argument("--resolution", type=int, default=96, help="grid samples along the longest side (default 96)")
     i.add_argument("--slice", help="one plane only, e.g. z=2.0, coloured by sigma_t with the contour F = T")
     i.add_argument("--balls", choices=("auto", "all", "points", "none"), default="auto",
-                   help="ball centres: all as dots, points (small, at most 2,000), none (default auto: all up to "
+                   help="ball centres: all (a dot each), points (small, at most 1,000), none (default auto: all up to "
                         "500 balls, else points)")
     i.add_argument("--grid", help="a voxel grid (.vdb, .nc, .npz, .npy): show a slice of it, the same slice of the "
                                   "scene's sigma_t and their difference side by side (docs/inspect.md)")
