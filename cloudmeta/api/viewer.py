@@ -376,6 +376,27 @@ def _draw_centres(plotter, blob, mode, labels):
         labels.add(label)
 
 
+def _moving_contours(plotter, actors, name, threshold, colour, label):
+    """F = T as lines on each slice that a widget moves: a contour filter fed by the slice's cutter, so that
+    the lines follow the slice. The slices' polygons are pushed back in depth a little, so that lines lying
+    in them are not covered (the viewer turns, so a fixed lift towards it would not do)."""
+    import pyvista as pv
+    from vtkmodules.vtkFiltersCore import vtkContourFilter
+    from vtkmodules.vtkCommonDataModel import vtkDataObject
+
+    for k, actor in enumerate(actors):
+        mapper = actor.GetMapper()
+        mapper.SetResolveCoincidentTopologyToPolygonOffset()
+        mapper.SetRelativeCoincidentTopologyPolygonOffsetParameters(2.0, 4.0)
+        contour = vtkContourFilter()
+        contour.SetInputConnection(mapper.GetInputConnection(0, 0))
+        contour.SetInputArrayToProcess(0, 0, 0, vtkDataObject.FIELD_ASSOCIATION_POINTS, name)
+        contour.SetValue(0, float(threshold))
+        contour.ComputeScalarsOff()
+        plotter.add_mesh(contour, color=colour, line_width=1.5, show_scalar_bar=False,
+                         label=label if k == 0 else None)
+
+
 def draw_volume(plotter, scene, grid, widgets, balls="auto"):
     """Slices of sigma_t (with slice widgets when ``widgets``), each blob's F = T, the ball centres, the
     camera frustum and the lights, on ``plotter``. ``balls`` (BALL_MODES) says how the centres are drawn."""
@@ -395,7 +416,7 @@ def draw_volume(plotter, scene, grid, widgets, balls="auto"):
     style = dict(scalars=scalars, cmap=CMAP, clim=clim, opacity=opacity, scalar_bar_args=_bar(title))
     slices = []
     if widgets:
-        plotter.add_mesh_slice_orthogonal(grid, **style)
+        moving = plotter.add_mesh_slice_orthogonal(grid, **style)
     else:
         for normal in "xyz":  # one mesh each: a MultiBlock takes no opacity transfer function
             slices.append(grid.slice(normal=normal, origin=grid.center))
@@ -411,6 +432,8 @@ def draw_volume(plotter, scene, grid, widgets, balls="auto"):
             forward, right, up = camera_frame(scene.camera)
             towards_viewer = right + VIEW_BEYOND * forward + VIEW_ABOVE * up
             diagonal = float(np.linalg.norm(np.ptp(np.array(grid.bounds).reshape(3, 2), axis=1)))
+            if widgets:
+                _moving_contours(plotter, moving, name, blob.threshold, colour, label)
             for k, piece in enumerate(slices):
                 lines = _contour(piece, name, blob.threshold)
                 if lines is not None:

@@ -439,3 +439,29 @@ def test_compare_a_fit_of_an_openvdb_file(tmp_path, capsys):
     np.testing.assert_array_equal(back.point_data["grid"], voxels.density[:, layer, :].ravel(order="F"))
     error = np.linalg.norm(back.point_data["difference"]) / np.linalg.norm(back.point_data["grid"])
     assert 0.01 < error < 0.5  # a fit of 400 balls: close, not exact
+
+
+def test_many_balls_in_the_window_contours_follow_the_slices(tmp_path):
+    from vtkmodules.vtkFiltersCore import vtkContourFilter
+
+    scene = many_balls_scene(tmp_path, n=800)
+    grid = sample_grid(scene, 24)
+    plotter = pv.Plotter(off_screen=True)
+    try:
+        draw_volume(plotter, scene, grid, widgets=True)
+        contours = [a.GetMapper().GetInputConnection(0, 0).GetProducer() for a in plotter.actors.values()
+                    if hasattr(a, "GetMapper") and a.GetMapper() is not None
+                    and a.GetMapper().GetNumberOfInputConnections(0)
+                    and isinstance(a.GetMapper().GetInputConnection(0, 0).GetProducer(), vtkContourFilter)]
+        assert len(contours) == 3
+        widget = plotter.widgets.plane_widgets[2]  # the z slice
+        for z in (grid.center[2], grid.center[2] + 0.4):
+            widget.SetOrigin(grid.center[0], grid.center[1], z)
+            for event in ("InteractionEvent", "EndInteractionEvent"):  # whichever the widget listens to
+                widget.InvokeEvent(event)
+            contours[2].Update()
+            lines = pv.wrap(contours[2].GetOutput())
+            assert lines.n_points > 20
+            np.testing.assert_allclose(lines.points[:, 2], z, atol=1e-9)
+    finally:
+        plotter.close()
