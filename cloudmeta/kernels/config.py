@@ -447,8 +447,10 @@ CACHE = _register_cache()
 CACHE_FOLDER = _KernelCacheLocator.folder
 FASTMATH = False
 
-#: flags for serial kernels
-NJIT = dict(cache=CACHE, fastmath=FASTMATH, nogil=True, error_model="numpy")
+#: flags for serial kernels. no_cfunc_wrapper: numba otherwise compiles a C-callable wrapper of every function
+#: (for first-class function values, which the kernels never are), beside the Python wrapper: for a kernel that
+#: takes the scene's records, LLVM spent about a third as long on it as on the kernel itself
+NJIT = dict(cache=CACHE, fastmath=FASTMATH, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
 #: flags for the small helpers of hot loops: inlined into their callers at numba's IR level, so that no
 #: call boundary remains in the loop (the arrays they bind are still reference-counted where the helper
 #: branches: the loops read borrowed records, kernels.borrow)
