@@ -27,24 +27,31 @@ folders without the source hash. It differs from numba's cache in two faults onl
   read, but nothing is saved there: the kernels not found in it compile in memory, with one line on stderr
   for the process, never into another folder.
 
-Reference counts: inlinable, process-wide by nature
----------------------------------------------------
+Reference counts: inlinable in cloudmeta's kernels alone
+---------------------------------------------------------
 numba counts references to every array a kernel binds, with calls to its runtime's ``NRT_incref`` and
 ``NRT_decref``, which it marks ``noinline`` so that its reference-count pruning can find them. The hot
 loops read borrowed records (kernels.borrow: arrays whose MemInfo is null), so each of those calls only
 tests a null pointer; but a call still clobbers the caller's registers, and an inlined helper that takes
 the scene's records binds a hundred arrays or more. On the multiple-scattering paths a path that did
 nothing at all cost 1.3 us, and a vertex 2-4 us where its work alone took 1.2 us in a harness
-(docs/performance_notes.md §2g). cloudmeta
-drops ``noinline`` from the two functions (``_inline_reference_counts``), so that LLVM inlines them and
-the null test becomes one compare and branch; NRT_decref keeps the rest of its body (the atomic decrement
-and the destructor) in a function of its own, called only for an owned array, so that each inlined copy
-stays small (``_split_slow_path``). Single scattering 1.3x and multiple scattering 1.4-1.6x faster, images
-bit-identical. Owned arrays are counted as before, with the same atomic operations; only
-numba's pruning of counts, which runs after inlining, then finds fewer pairs to remove. The runtime's
-functions are built once per process, so this applies only where cloudmeta is imported before the process
-compiles any numba function, and to all numba code compiled after (it changes speed, not results).
-``CLOUDMETA_NRT_INLINE=0`` leaves numba's runtime as it is (and caches the kernels apart).
+(docs/performance_notes.md §2g). cloudmeta therefore links, into each of its own kernels' modules and ahead
+of numba's runtime, a copy of the two functions without ``noinline`` (``_inlinable_refcounts``), so that
+LLVM inlines them and the null test becomes one compare and branch; NRT_decref keeps the rest of its body
+(the atomic decrement and the destructor) in a function of its own, called only for an owned array, so
+that each inlined copy stays small (``_split_slow_path``). Single scattering 1.3x and multiple scattering
+1.4-1.6x faster, images bit-identical. Owned arrays are counted as before, with the same atomic
+operations; only numba's pruning of counts, which runs after inlining, then finds fewer pairs to remove.
+
+numba's runtime itself is left as it is: every other numba function in the process compiles and runs as it
+would without cloudmeta. A kernel is a function of a file in this folder; the copy is linked into the
+library numba compiles for the kernel (found by ``numba:compile`` events and the library's name; not into
+the libraries of numba's helpers, which later functions share), by wrapping the CPU target's
+``post_lowering`` (where numba links its runtime). It relies on four names of
+numba's internals (``CPUContext.post_lowering``, ``nrtdynmod._define_atomic_inc_dec``, ``_define_nrt_incref``,
+``_define_nrt_decref``): pyproject.toml pins numba to the versions tested, and where one is missing the
+counts stay calls (``INLINE_REFCOUNTS`` False; tests/kernels/test_config.py fails). ``CLOUDMETA_NRT_INLINE=0``
+leaves the kernels' counts as calls too (and caches the kernels apart).
 
 Threading layer: process-wide by nature
 ---------------------------------------
@@ -62,10 +69,11 @@ import hashlib
 import os
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 import numba
-from numba.core import caching
+from numba.core import caching, event
 from numba.core import dispatcher as _dispatcher
 
 KERNELS = Path(__file__).resolve().parent
@@ -307,31 +315,101 @@ def _prefer_workqueue():
     numba.config.THREADING_LAYER = "workqueue"
 
 
+#: the compiles under way in this thread, innermost last: a kernel's library name, None for other functions
+_COMPILING = threading.local()
+
+
+class _KernelCompiles(event.Listener):
+    """Follows the compiles under way (``numba:compile`` events), so that the library of a kernel, and of no
+    other function, gets the inlinable reference counts: numba names a function's library after its
+    qualified name, and the helpers it compiles for a kernel (shared with later functions) have their own."""
+
+    def on_start(self, ev):
+        py_func = getattr(ev.data.get("dispatcher"), "py_func", None)
+        code = getattr(py_func, "__code__", None)
+        kernel = code is not None and _is_kernel_file(code.co_filename)
+        stack = getattr(_COMPILING, "stack", None)
+        if stack is None:
+            stack = _COMPILING.stack = []
+        stack.append(py_func.__qualname__ if kernel else None)
+
+    def on_end(self, ev):
+        _COMPILING.stack.pop()
+
+
+class _LinkOnly:
+    """An LLVM module that numba links into a library as it links its callees' libraries (what numba's
+    ``CPUCodeLibrary.finalize`` reads of one)."""
+
+    def __init__(self, module):
+        self._module = module
+        self._reload_init = set()
+
+    def _ensure_finalized(self):
+        pass
+
+    def _get_module_for_linking(self):
+        return self._module
+
+
+#: the linkable module of the inlinable counts, built at the first kernel compile
+_REFCOUNTS = []
+
+
+def _inlinable_refcounts(context):
+    """numba's NRT_incref and NRT_decref (and the atomic helpers they call) defined as numba defines them,
+    without ``noinline``, NRT_decref split (``_split_slow_path``); every definition ``linkonce_odr``, as numba
+    makes its runtime's when it links it."""
+    if not _REFCOUNTS:
+        from llvmlite import binding
+        from numba.core.runtime import nrtdynmod
+        module = context.codegen().create_library("cloudmeta_refcounts").create_ir_module("cloudmeta_refcounts")
+        increment = nrtdynmod._define_atomic_inc_dec(module, "add", ordering="monotonic")
+        decrement = nrtdynmod._define_atomic_inc_dec(module, "sub", ordering="monotonic")
+        nrtdynmod._define_nrt_incref(module, increment)
+        nrtdynmod._define_nrt_decref(module, decrement)
+        for name in ("NRT_incref", "NRT_decref"):
+            module.get_global(name).attributes.discard("noinline")
+        _split_slow_path(module, module.get_global("NRT_decref"))
+        linkable = binding.parse_assembly(str(module))
+        for fn in linkable.functions:
+            if not fn.is_declaration:
+                fn.linkage = "linkonce_odr"
+        linkable.verify()
+        _REFCOUNTS.append(_LinkOnly(linkable))
+    return _REFCOUNTS[0]
+
+
+def _post_lowering(self, mod, library):
+    """numba's ``post_lowering`` (which links its runtime into the library), with the inlinable counts linked
+    first into a kernel's library: the first definition linked is the one a module keeps."""
+    stack = getattr(_COMPILING, "stack", None)
+    if stack and stack[-1] is not None and getattr(library, "name", None) == stack[-1]:
+        linking = getattr(library, "_linking_libraries", None)
+        if isinstance(linking, list):
+            linking.insert(0, _inlinable_refcounts(self))
+        else:
+            library.add_linking_library(_inlinable_refcounts(self))
+    return _post_lowering.numba(self, mod, library)
+
+
 def _inline_reference_counts():
-    """Whether numba's runtime will have NRT_incref and NRT_decref inlinable (module docstring): wraps the
-    two functions that define them, unless the runtime is built already, CLOUDMETA_NRT_INLINE=0, or this
-    numba does not have them (then its counts stay calls, and the kernels slower)."""
+    """Whether cloudmeta's kernels get inlinable reference counts (module docstring): installs the
+    ``numba:compile`` listener and the wrapped ``post_lowering``, unless CLOUDMETA_NRT_INLINE=0 or this numba
+    lacks what they need (then the counts stay calls, and the kernels slower)."""
     if os.environ.get("CLOUDMETA_NRT_INLINE", "1").strip() == "0":
         return False
-    from numba.core.runtime import nrt, nrtdynmod
-    if getattr(nrt.rtsys, "_init", True):
+    from numba.core.cpu import CPUContext
+    from numba.core.runtime import nrtdynmod
+    needed = ("_define_atomic_inc_dec", "_define_nrt_incref", "_define_nrt_decref")
+    if not all(callable(getattr(nrtdynmod, name, None)) for name in needed):
         return False
-    names = {"_define_nrt_incref": "NRT_incref", "_define_nrt_decref": "NRT_decref"}
-    if not all(callable(getattr(nrtdynmod, define, None)) for define in names):
+    if not callable(getattr(CPUContext, "post_lowering", None)):
         return False
-    for define, name in names.items():
-        original = getattr(nrtdynmod, define)
-        if getattr(original, "numba", None) is not None:
-            continue  # wrapped already (the module imported twice)
-
-        def inlinable(module, atomic, _original=original, _name=name):
-            _original(module, atomic)
-            fn = module.get_global(_name)
-            fn.attributes.discard("noinline")
-            if _name == "NRT_decref":
-                _split_slow_path(module, fn)
-        inlinable.numba = original
-        setattr(nrtdynmod, define, inlinable)
+    if getattr(CPUContext.post_lowering, "numba", None) is None:  # not wrapped already (module imported twice)
+        _post_lowering.numba = CPUContext.post_lowering
+        CPUContext.post_lowering = _post_lowering
+        event.register("numba:compile", _KernelCompiles())
     return True
 
 
@@ -362,15 +440,17 @@ def _split_slow_path(module, fn):
 
 
 _prefer_workqueue()
-#: whether numba's reference counts are inlinable in this process (module docstring)
+#: whether cloudmeta's kernels get inlinable reference counts (module docstring)
 INLINE_REFCOUNTS = _inline_reference_counts()
 CACHE = _register_cache()
 #: the folder of the compiled kernels (None where caching is off)
 CACHE_FOLDER = _KernelCacheLocator.folder
 FASTMATH = False
 
-#: flags for serial kernels
-NJIT = dict(cache=CACHE, fastmath=FASTMATH, nogil=True, error_model="numpy")
+#: flags for serial kernels. no_cfunc_wrapper: numba otherwise compiles a C-callable wrapper of every function
+#: (for first-class function values, which the kernels never are), beside the Python wrapper: for a kernel that
+#: takes the scene's records, LLVM spent about a third as long on it as on the kernel itself
+NJIT = dict(cache=CACHE, fastmath=FASTMATH, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
 #: flags for the small helpers of hot loops: inlined into their callers at numba's IR level, so that no
 #: call boundary remains in the loop (the arrays they bind are still reference-counted where the helper
 #: branches: the loops read borrowed records, kernels.borrow)

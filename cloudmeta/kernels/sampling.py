@@ -13,7 +13,7 @@
   block the paths' points are a scrambled (t, m, 4)-net, so the integrand's smooth part averages out
   faster than with independent numbers; across blocks, pixels and seeds they are independent.
 - ``free_flight``: the distance at which the exact optical depth of a Bernstein piece reaches a target
-  (Newton on the exact antiderivative, kept in a bisection bracket).
+  (``invert_depth``: Newton on the exact antiderivative, kept in a bisection bracket).
 """
 import math
 
@@ -198,16 +198,16 @@ def turn(d, cos_theta, u_phi, out):
 
 
 @njit(**NJIT)
-def free_flight(S, w, target):
-    """s in [0, 1] where w * integral_0^s S (the optical depth across a piece of length w whose sigma_t
-    has Bernstein control values S) reaches target, 0 <= target <= w * mean(S). The depth is monotone
-    (sigma_t >= 0 inside), so Newton steps are kept inside a shrinking bisection bracket: every step
-    either converges quadratically or halves the bracket."""
-    lo = 0.0
+def invert_depth(S, w, target, lo, s, tol, max_steps, open_bracket):
+    """s in [lo, 1] where w * integral_0^s S (the optical depth across a piece of length w whose sigma_t
+    has Bernstein control values S) reaches target; s: the first guess. The depth is monotone (sigma_t >= 0
+    inside), so Newton steps on the exact antiderivative are kept inside a shrinking bisection bracket
+    [lo, hi]: every step either converges quadratically or halves the bracket. A step outside the bracket
+    (or on its ends, where open_bracket) bisects instead; the search stops once a step or the bracket is
+    within tol, or after max_steps. The one Newton inversion of the kernels: free flights here, the
+    quadrature's nodes in optical depth (kernels.single)."""
     hi = 1.0
-    total = w * bernstein_cumulative(S, 1.0)
-    s = target / total if total > 0.0 else 0.5  # the root for a constant sigma_t
-    for _ in range(100):
+    for _ in range(max_steps):
         f = w * bernstein_cumulative(S, s) - target
         if f < 0.0:
             lo = s
@@ -215,9 +215,19 @@ def free_flight(S, w, target):
             hi = s
         slope = w * bernstein_eval(S, s)
         sn = s - f / slope if slope > 0.0 else 0.5 * (lo + hi)
-        if not (lo <= sn <= hi):
+        if (not (lo < sn < hi)) if open_bracket else (not (lo <= sn <= hi)):
             sn = 0.5 * (lo + hi)
-        if abs(sn - s) <= 1e-15 or hi - lo <= 1e-15:
-            return min(max(sn, 0.0), 1.0)
+        if abs(sn - s) <= tol or hi - lo <= tol:
+            return sn
         s = sn
     return s
+
+
+@njit(**NJIT)
+def free_flight(S, w, target):
+    """s in [0, 1] where w * integral_0^s S (the optical depth across a piece of length w whose sigma_t
+    has Bernstein control values S) reaches target, 0 <= target <= w * mean(S) (invert_depth from the root
+    for a constant sigma_t)."""
+    total = w * bernstein_cumulative(S, 1.0)
+    s = target / total if total > 0.0 else 0.5  # the root for a constant sigma_t
+    return min(max(invert_depth(S, w, target, 0.0, s, 1e-15, np.int64(100), np.bool_(False)), 0.0), 1.0)

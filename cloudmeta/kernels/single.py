@@ -64,7 +64,7 @@ from numba.core import types
 from numba.extending import overload
 
 from .config import NJIT, NJIT_INLINE, OVERLOAD
-from .bernstein import bernstein_cumulative, bernstein_eval
+from .bernstein import bernstein_eval
 from .borrow import borrow, hold_grown, release
 from .bvh import misses_root_boxes
 from .camera import background_radiance, background_sample, camera_ray
@@ -74,6 +74,7 @@ from .lighting import (COUNT_FOLDS, COUNT_KRONROD, COUNT_NODES, COUNT_SPLITS, CO
 from .media import collect_media
 from .optics import phase
 from .records import SHADOWS_HYBRID, SHADOWS_MAP, RayWork, StepState
+from .sampling import invert_depth
 from .intervals import alloc_ray_work, depth_at, elementary_intervals
 from .surfaces import SHADOW_OFFSET, surface_normal
 
@@ -91,28 +92,12 @@ TAIL_SHARE = 0.1
 @njit(**NJIT)
 def _depth_to_s(S, w, u, s0, u0):
     """s in [s0, 1] where the optical depth w * int_0^s S reaches u, given that it is u0 at s0 (the
-    previous node): Newton on the exact antiderivative from the previous node, kept in a shrinking
-    bracket (the depth is monotone, S >= 0)."""
-    lo = s0
-    hi = 1.0
+    previous node): sampling.invert_depth from a Newton step off the previous node."""
     slope = w * bernstein_eval(S, s0)
     s = s0 + (u - u0) / slope if slope > 0.0 else 0.5 * (s0 + 1.0)
-    if not (lo < s < hi):
-        s = 0.5 * (lo + hi)
-    for _ in range(60):
-        f = w * bernstein_cumulative(S, s) - u
-        if f < 0.0:
-            lo = s
-        else:
-            hi = s
-        slope = w * bernstein_eval(S, s)
-        sn = s - f / slope if slope > 0.0 else 0.5 * (lo + hi)
-        if not (lo < sn < hi):
-            sn = 0.5 * (lo + hi)
-        if abs(sn - s) <= 1e-14 or hi - lo <= 1e-14:
-            return sn
-        s = sn
-    return s
+    if not (s0 < s < 1.0):
+        s = 0.5 * (s0 + 1.0)
+    return invert_depth(S, w, u, s0, s, 1e-14, np.int64(60), np.bool_(True))
 
 
 @njit(**NJIT)

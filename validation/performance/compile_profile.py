@@ -11,6 +11,16 @@ Renders one scene (default: the cumulus at 4 x 3, as the CLI does) in this proce
     python -m validation.performance.compile_profile            # the usual cache (warm after a first run)
     python -m validation.performance.compile_profile --cold     # an empty cache folder: everything compiles
     python -m validation.performance.compile_profile --scene scenes/hand.yaml --width 8 --height 6
+    python -m validation.performance.compile_profile --cold --kinds   # every kind `cloudmeta compile` does
+
+With ``--passes N`` the N functions of the longest exclusive compile also get numba's own record of their
+compile: wall seconds per pass of its pipeline (type inference includes the compiles of the callees it meets,
+lowering the LLVM function passes) and, run with NUMBA_LLVM_PASS_TIMINGS=1, LLVM's per stage.
+
+With ``--kinds`` the jobs of ``cloudmeta compile`` (the ray API and one tiny scene of each kind) run one after
+another in this process instead of the one render, so the table counts every signature each function
+compiles across all kinds (a top-level kernel compiled twice for two kinds shows 2), and the process CPU time
+of each job is printed (later jobs load or reuse what earlier ones compiled).
 
 Run it in a fresh process each time (it patches numba's cache class before cloudmeta is imported).
 """
@@ -82,6 +92,39 @@ def install_probes():
     return loads, saves, compiles
 
 
+def _print_passes(dispatcher):
+    """numba's pipeline times (and LLVM's, where recorded) of each signature the dispatcher compiled."""
+    for sig, cres in getattr(dispatcher, "overloads", {}).items():
+        metadata = getattr(cres, "metadata", None) or {}
+        print(f"\n  {_short(dispatcher)} {sig}: numba's passes (wall s, nested compiles included)")
+        for pipeline, passes in metadata.get("pipeline_times", {}).items():
+            rows = sorted(((t.init + t.run + t.finalize, name) for name, t in passes.items()), reverse=True)
+            for took, name in rows[:10]:
+                print(f"    {pipeline:10s} {name:44s} {took:9.2f}s")
+        llvm = metadata.get("llvm_pass_timings")
+        if llvm is not None:
+            for record in sorted(llvm, key=lambda r: -r.timings.get_total_time())[:6]:
+                print(f"    llvm       {record.name[:44]:44s} {record.timings.get_total_time():9.2f}s")
+
+
+def _run_kinds(args, t_probe, t_import):
+    """Every job of ``cloudmeta compile``, one after another in this process: (wall s, process CPU s)."""
+    from cloudmeta.cli.compile import jobs
+
+    print(f"every kind of `cloudmeta compile`, in one process, {'empty' if args.cold else 'usual'} cache")
+    print(f"  numba import + probes            {t_probe:8.3f} s")
+    print(f"  import cloudmeta (+ io)          {t_import:8.3f} s")
+    wall0, cpu0 = time.perf_counter(), time.process_time()
+    with tempfile.TemporaryDirectory() as folder:
+        for name, code in jobs(folder):
+            t0, c0 = time.perf_counter(), time.process_time()
+            exec(compile(code, name, "exec"), {})
+            print(f"  {name[:60]:60s} {time.perf_counter() - t0:7.1f} s wall {time.process_time() - c0:7.1f} s CPU")
+    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    print(f"  {'all kinds':60s} {wall:7.1f} s wall {cpu:7.1f} s CPU")
+    return wall, cpu
+
+
 def main(argv=None):
     ap = parser(__doc__)
     ap.add_argument("--scene", default=str(CUMULUS))
@@ -90,6 +133,10 @@ def main(argv=None):
     ap.add_argument("--cold", action="store_true", help="compile everything into an empty cache folder")
     ap.add_argument("--cache-dir", help="use this CLOUDMETA_CACHE_DIR (with --cold: keep the new cache there)")
     ap.add_argument("--top", type=int, default=25, help="rows of the per-function tables")
+    ap.add_argument("--passes", type=int, default=0,
+                    help="numba's per-pass times of the N functions of the longest exclusive compile")
+    ap.add_argument("--kinds", action="store_true",
+                    help="run the jobs of `cloudmeta compile` (every kind of scene) instead of one render")
     args, _ = parse(ap, argv)
     tmp = None
     if args.cold and not args.cache_dir:
@@ -108,25 +155,29 @@ def main(argv=None):
     import cloudmeta as cm
     from cloudmeta.api.io import write_exr
     t_import = time.perf_counter() - t0
-    cpu0 = time.process_time()
-    t0 = time.perf_counter()
-    scene = cm.load_scene(args.scene, width=args.width, height=args.height)
-    t_scene = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    image = cm.render(scene, progress=False)
-    t_render = time.perf_counter() - t0
-    cpu_render = time.process_time() - cpu0
-    with tempfile.TemporaryDirectory() as out:
+    if args.kinds:
+        t_scene = t_exr = 0.0
+        t_render, cpu_render = _run_kinds(args, t_probe, t_import)
+    else:
+        cpu0 = time.process_time()
         t0 = time.perf_counter()
-        write_exr(image, os.path.join(out, "x.exr"))
-        t_exr = time.perf_counter() - t0
+        scene = cm.load_scene(args.scene, width=args.width, height=args.height)
+        t_scene = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        image = cm.render(scene, progress=False)
+        t_render = time.perf_counter() - t0
+        cpu_render = time.process_time() - cpu0
+        with tempfile.TemporaryDirectory() as out:
+            t0 = time.perf_counter()
+            write_exr(image, os.path.join(out, "x.exr"))
+            t_exr = time.perf_counter() - t0
 
-    print(f"scene {args.scene} at {args.width} x {args.height}, {'empty' if args.cold else 'usual'} cache")
-    print(f"  numba import + probes            {t_probe:8.3f} s")
-    print(f"  import cloudmeta (+ io)          {t_import:8.3f} s")
-    print(f"  load_scene                       {t_scene:8.3f} s")
-    print(f"  first render                     {t_render:8.3f} s  (process CPU {cpu_render:.1f} s)")
-    print(f"  write_exr (imports OpenEXR)      {t_exr:8.3f} s")
+        print(f"scene {args.scene} at {args.width} x {args.height}, {'empty' if args.cold else 'usual'} cache")
+        print(f"  numba import + probes            {t_probe:8.3f} s")
+        print(f"  import cloudmeta (+ io)          {t_import:8.3f} s")
+        print(f"  load_scene                       {t_scene:8.3f} s")
+        print(f"  first render                     {t_render:8.3f} s  (process CPU {cpu_render:.1f} s)")
+        print(f"  write_exr (imports OpenEXR)      {t_exr:8.3f} s")
     if compiles:
         total = sum(c[2] for c in compiles)
         cpu = sum(c[3] for c in compiles)
@@ -143,6 +194,8 @@ def main(argv=None):
             row[4] += 1
         for d, inc, exc, exc_cpu, n in sorted(per.values(), key=lambda c: -c[3])[:args.top]:
             print(f"  {_short(d):44s} {inc:9.2f}s {exc:9.2f}s {exc_cpu:9.2f}s  {n}")
+        for d, *_ in sorted(per.values(), key=lambda c: -c[3])[:args.passes]:
+            _print_passes(d)
     hits = [(f, t, c) for f, t, hit, c in loads if hit]
     misses = [(f, t) for f, t, hit, _ in loads if not hit]
     if loads:
