@@ -402,6 +402,26 @@ def check_exposure(exposure, label="exposure"):
     return float(exposure)
 
 
+def check_replaceable(path, ext, label, overwrite, mark, producer, how="--overwrite"):
+    """The full path of a file that a scene producer (``producer``, e.g. "cloudmeta generate") is about to
+    write: a new one, or, with ``overwrite``, one it wrote itself (its first line starts with ``mark``).
+    Anything else, a hand-made scene above all, is refused with an OutputError naming the path."""
+    full = check_output_path(path, ext, label)
+    if os.path.lexists(full):
+        if not overwrite:
+            raise OutputError(f"{label} {path}: exists; refusing to overwrite it ({how} replaces a file that "
+                              f"{producer} wrote)")
+        try:
+            with open(full, "r", encoding="utf-8", errors="replace") as f:
+                first = f.readline()
+        except OSError as exc:
+            raise OutputError(f"{label} {path}: {exc.strerror or exc}") from None
+        if not first.startswith(mark):
+            raise OutputError(f"{label} {path}: exists and was not written by {producer} (it may be a "
+                              f"hand-made scene or another scene's input); refusing to overwrite it")
+    return full
+
+
 def check_output_path(path, ext, label, inputs=()):
     """Refuse, before any work, an output ``path`` that cannot be written or must not be: one of ``inputs``
     (the scene's own files), an existing target that is a folder, a device or a FIFO, a wrong extension

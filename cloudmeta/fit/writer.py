@@ -81,21 +81,8 @@ def scene_text(result, csv_name, scale, threshold, errors, command=None, yaml_la
 
 
 def _check_target(path, label, ext, overwrite):
-    from ..api.io import check_output_path
-    full = check_output_path(path, ext, label)
-    if os.path.lexists(full):
-        if not overwrite:
-            raise OutputError(f"{label} {path}: exists; refusing to overwrite it (--overwrite replaces a file that "
-                              f"cloudmeta fit wrote)")
-        try:
-            with open(full, "r", encoding="utf-8", errors="replace") as f:
-                first = f.readline()
-        except OSError as exc:
-            raise OutputError(f"{label} {path}: {exc.strerror or exc}") from None
-        if not first.startswith(MARK):
-            raise OutputError(f"{label} {path}: exists and was not written by cloudmeta fit; refusing to "
-                              f"overwrite it")
-    return full
+    from ..api.io import check_replaceable
+    return check_replaceable(path, ext, label, overwrite, MARK, "cloudmeta fit", how="--overwrite")
 
 
 def check_paths(yaml_path, overwrite=False, inputs=()):

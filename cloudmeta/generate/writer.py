@@ -106,21 +106,8 @@ def csv_text(cloud, command=None):
 
 
 def _check_target(path, label, ext, overwrite):
-    from ..api.io import check_output_path
-    full = check_output_path(path, ext, label)
-    if os.path.lexists(full):
-        if not overwrite:
-            raise OutputError(f"{label} {path}: exists; refusing to overwrite it (overwrite=True, or --overwrite, "
-                              f"replaces a file that cloudmeta generate wrote)")
-        try:
-            with open(full, "r", encoding="utf-8", errors="replace") as f:
-                first = f.readline()
-        except OSError as exc:
-            raise OutputError(f"{label} {path}: {exc.strerror or exc}") from None
-        if not first.startswith(MARK):
-            raise OutputError(f"{label} {path}: exists and was not written by cloudmeta generate (it may be a "
-                              f"hand-made scene or another scene's input); refusing to overwrite it")
-    return full
+    from ..api.io import check_replaceable
+    return check_replaceable(path, ext, label, overwrite, MARK, "cloudmeta generate", how="overwrite=True, or --overwrite,")
 
 
 def check_scene_paths(yaml_path, csv_path=None, overwrite=False):
