@@ -2,8 +2,8 @@
 
 numba counts references to every array a kernel binds: an atomic add on the array's MemInfo each time a
 helper with a branch binds it, and another when it lets go. On the records a render reads (the scene, the
-quadrature rule, a thread's work arrays) those pairs took 25-41 % of a lit render (docs/performance_notes.md
-§2f). A borrowed view is the same array (data, shape, strides) without a MemInfo: NRT then skips it.
+quadrature rule, a thread's work arrays) those pairs took 25-41 % of a lit render (docs/performance.md,
+"Choices in the kernels that buy speed"). A borrowed view is the same array (data, shape, strides) without a MemInfo: NRT then skips it.
 
 A borrowed view must not outlive its owner. The scene records and the quadrature outlive every kernel
 that reads them (the caller holds them for the whole call). A thread's work arrays are held by the

@@ -35,7 +35,7 @@ loops read borrowed records (kernels.borrow: arrays whose MemInfo is null), so e
 tests a null pointer; but a call still clobbers the caller's registers, and an inlined helper that takes
 the scene's records binds a hundred arrays or more. On the multiple-scattering paths a path that did
 nothing at all cost 1.3 us, and a vertex 2-4 us where its work alone took 1.2 us in a harness
-(docs/performance_notes.md §2g). cloudmeta therefore links, into each of its own kernels' modules and ahead
+(docs/performance.md, "Choices in the kernels that buy speed"). cloudmeta therefore links, into each of its own kernels' modules and ahead
 of numba's runtime, a copy of the two functions without ``noinline`` (``_inlinable_refcounts``), so that
 LLVM inlines them and the null test becomes one compare and branch; NRT_decref keeps the rest of its body
 (the atomic decrement and the destructor) in a function of its own, called only for an owned array, so

@@ -91,7 +91,7 @@ def shadow_transmittance(x, l, tmax, med, tol_t, tau_stop, scratch, cand, stack)
     entries into the media, counted until it stopped).
     Inlined, with column_density, into each shadow ray's caller: a call passed the scene's media and the sweep
     scratch, about 30 arrays, and took 5-9 % of a shadow ray (512 x 512 renders 6-9 % faster inlined; the
-    first cold render of the cumulus compiles 9 s longer, docs/performance_notes.md §2h)."""
+    first cold render of the cumulus compiles 9 s longer, docs/compile.md)."""
     tau = 0.0
     entries = 0
     for m in range(n_media(med)):

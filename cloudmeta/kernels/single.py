@@ -47,7 +47,7 @@ records, remains per node. The estimator's stages with one caller each (``single
 ``render_pixels`` too, for compile time: numba links every separately compiled callee into its caller's
 module and optimises and generates machine code for the whole module again, so each level of the call
 chain above the shadow-ray and sweep code compiled all of that code once more (cumulus cold compile,
-process CPU: 375 s with the stages separate, 300 s inlined; docs/performance_notes.md §2b). The
+process CPU: 375 s with the stages separate, 300 s inlined; docs/compile.md). The
 quadrature's loops carry only the sweep scratch (which a shadow ray may grow), not the whole RayWork:
 every record a loop carries becomes LLVM phi nodes for each field of each of its arrays, and carrying
 the 44 arrays of RayWork through three nested loops cost 40 s of compile (§2c).
@@ -85,7 +85,7 @@ MAX_SPLITS = 6
 #: Gauss nodes (their shadow rays all enter the media alike). The two highest Legendre coefficients of J's degree-6
 #: interpolant say how far J is from a lower degree, but the 7 Gauss nodes integrate exactly to degree 13: on a smooth
 #: J they err far less than the tail. Across a fold J has a square-root kink, and there the whole tail counts
-#: (docs/error_estimate.md "The Gauss test's share of the tail")
+#: (CHANGELOG.md, "The Gauss test's share of the tail")
 TAIL_SHARE = 0.1
 
 
