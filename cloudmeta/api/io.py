@@ -402,6 +402,16 @@ def check_exposure(exposure, label="exposure"):
     return float(exposure)
 
 
+def write_texts(texts):
+    """Write [(full path, text)] together (UTF-8, LF), atomically: all of them or none (a scene and its balls
+    file)."""
+    paths = [path for path, _ in texts]
+    with atomic_outputs(paths) as tmps:
+        for tmp, (_, text) in zip(tmps, texts):
+            with open(tmp, "w", encoding="utf-8", newline="\n") as f:
+                f.write(text)
+
+
 def check_replaceable(path, ext, label, overwrite, mark, producer, how="--overwrite"):
     """The full path of a file that a scene producer (``producer``, e.g. "cloudmeta generate") is about to
     write: a new one, or, with ``overwrite``, one it wrote itself (its first line starts with ``mark``).

@@ -107,8 +107,8 @@ def check_paths(yaml_path, overwrite=False, inputs=()):
 def write_fit(result, yaml_path, errors, overwrite=False, command=None, inputs=()):
     """Write the scene ``yaml_path`` and its balls file (same name, .csv) for a FitResult; ``errors`` is
     {'density', 'depth', 'rays', 'samples'}. Both files go to temporary names and are renamed into place
-    together (cloudmeta.api.io.atomic_outputs). Returns (yaml path, csv path), absolute."""
-    from ..api.io import atomic_outputs
+    together (cloudmeta.api.io.write_texts). Returns (yaml path, csv path), absolute."""
+    from ..api.io import write_texts
     if len(result) == 0:
         raise InputError("fit: no balls to write")
     y_full, c_full = check_paths(yaml_path, overwrite, inputs)
@@ -117,9 +117,5 @@ def write_fit(result, yaml_path, errors, overwrite=False, command=None, inputs=(
     csv_body = csv_text(np.column_stack([centers, radii, weights]), head)
     yaml_body = scene_text(result, os.path.basename(c_full), scale, threshold, errors, command,
                            os.fspath(yaml_path))
-    with atomic_outputs([y_full, c_full]) as (y_tmp, c_tmp):
-        with open(c_tmp, "w", encoding="utf-8", newline="\n") as f:
-            f.write(csv_body)
-        with open(y_tmp, "w", encoding="utf-8", newline="\n") as f:
-            f.write(yaml_body)
+    write_texts([(y_full, yaml_body), (c_full, csv_body)])
     return y_full, c_full

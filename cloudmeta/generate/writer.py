@@ -138,12 +138,12 @@ def write_scene(cloud, yaml_path, csv_path=None, width=None, height=None, overwr
                 name=None):
     """Write the scene ``yaml_path`` (.yaml or .yml) and its balls file (default: the same name with .csv,
     in the same folder; the YAML names it relatively) for ``cloud``. Both are written to temporary files
-    in their folder and renamed into place together (both or neither; io.atomic_outputs). An existing file
+    in their folder and renamed into place together (both or neither; api.io.write_texts). An existing file
     is refused unless ``overwrite``, and even then only a file that cloudmeta generate wrote (its first
     line says so): a hand-made scene or balls file, which other scenes may read, is never written over.
     ``width`` and ``height`` set the image (default 512 x 512; 640 x 360 for a deck); ``command`` is
     recorded in a comment line. Returns (yaml path, csv path), absolute."""
-    from ..api.io import atomic_outputs
+    from ..api.io import write_texts
     from ..scene.limits import MAX_SIDE
     if not isinstance(cloud, Cloud):
         raise InputError(f"cloud: expected a Cloud from cloudmeta.generate, got {type(cloud).__name__}")
@@ -154,9 +154,5 @@ def write_scene(cloud, yaml_path, csv_path=None, width=None, height=None, overwr
     y_full, c_full = check_scene_paths(yaml_path, csv_path, overwrite)
     yaml_text = scene_text(cloud, os.path.basename(c_full), width, height, command, name, os.fspath(yaml_path))
     csv_body = csv_text(cloud, command)
-    with atomic_outputs([y_full, c_full]) as (y_tmp, c_tmp):
-        with open(c_tmp, "w", encoding="utf-8", newline="\n") as f:
-            f.write(csv_body)
-        with open(y_tmp, "w", encoding="utf-8", newline="\n") as f:
-            f.write(yaml_text)
+    write_texts([(y_full, yaml_text), (c_full, csv_body)])
     return y_full, c_full

@@ -48,8 +48,8 @@ from .kinds import DIRECTIONAL, POINT
 from .optics import phase
 from .records import FlightTally, PathKey
 from .sampling import sample_phase_cos, sobol4, turn, uniform
-from .tracking import (alloc_track_work, delta_flight, pick_medium, point_sigma, tentative_collision, walk_advance,
-                       walk_cell, walk_start)
+from .tracking import (alloc_track_work, delta_flight, pick_medium, point_sigma, tentative_collision, walk_cell,
+                       walk_next, walk_start)
 
 #: a photon source that is the environment (the others are kinds.LIGHTS)
 ENVIRONMENT = 2
@@ -92,10 +92,8 @@ def deposit(o, w, t_max, rg, coef, rgb, med):
                 for col in range(3):
                     coef[c, col, m] += rgb[col] * a
         t = t_out
-        if t >= t_end:
-            break
-        inside, cells = walk_advance(rg, cells)
-        if not inside:
+        going, cells = walk_next(rg, cells, t, t_end)
+        if not going:
             break
 
 

@@ -224,6 +224,15 @@ def walk_cell(grid, walk):
 
 
 @njit(**NJIT_INLINE)
+def walk_next(grid, walk, t_out, t_end):
+    """(whether the walk goes on, the walk) once the ray leaves its cell at t_out: it stops at t_end or where
+    the ray leaves the grid, and otherwise steps into the next cell. Every tracked loop ends a cell here."""
+    if t_out >= t_end:
+        return False, walk
+    return walk_advance(grid, walk)
+
+
+@njit(**NJIT_INLINE)
 def walk_advance(grid, walk):
     """(whether the ray is still in the grid, the walk) after stepping into the next cell along the ray."""
     ix, iy, iz, sx, sy, sz, nx, ny, nz, dx, dy, dz = walk
@@ -316,10 +325,8 @@ def delta_flight(o, d, t_max, grid, med, key, vertex, w, tally=None):
                 dim += 1
             tau = max(tau - mu * (t_out - t), 0.0)
         t = t_out
-        if t >= t_end:
-            break
-        inside, walk = walk_advance(grid, walk)
-        if not inside:
+        going, walk = walk_next(grid, walk, t, t_end)
+        if not going:
             break
     return np.inf, 0.0, 0.0
 
@@ -360,9 +367,7 @@ def tracked_transmittance(o, d, t_max, grid, med, key, vertex, dim0, w):
                     dim += 1
                     ratio *= 2.0
         t = t_out
-        if t >= t_end:
-            break
-        inside, walk = walk_advance(grid, walk)
-        if not inside:
+        going, walk = walk_next(grid, walk, t, t_end)
+        if not going:
             break
     return ratio * math.exp(-tau_c)
