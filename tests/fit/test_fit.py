@@ -146,7 +146,8 @@ def test_writing_is_atomic(tmp_path, cloud, monkeypatch):
             raise OSError("disk full")
         return open(path, *args, **kwargs)
 
-    monkeypatch.setattr(writer, "open", second_write_fails, raising=False)
+    import cloudmeta.api.io as api_io  # the scene and its balls file are written by api.io.write_texts
+    monkeypatch.setattr(api_io, "open", second_write_fails, raising=False)
     with pytest.raises(OSError):
         writer.write_fit(r, tmp_path / "a.yaml", r.errors)
     assert len(calls) == 2 and os.listdir(tmp_path) == []   # the first file written, then both removed
