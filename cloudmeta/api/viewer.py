@@ -380,7 +380,6 @@ def _moving_contours(plotter, actors, name, threshold, colour, label):
     """F = T as lines on each slice that a widget moves: a contour filter fed by the slice's cutter, so that
     the lines follow the slice. The slices' polygons are pushed back in depth a little, so that lines lying
     in them are not covered (the viewer turns, so a fixed lift towards it would not do)."""
-    import pyvista as pv
     from vtkmodules.vtkFiltersCore import vtkContourFilter
     from vtkmodules.vtkCommonDataModel import vtkDataObject
 
@@ -719,9 +718,7 @@ def inspect_command(args):
         grid = sample_grid(scene, resolution)
         print(f"cloudmeta: sampled {args.scene}: {_describe_grid(grid)}")
     if save is not None:
-        with atomic_output(save) as tmp:
-            grid.save(tmp)
-        print(f"cloudmeta: wrote {save} (arrays: {', '.join(grid.point_data.keys())})")
+        _save(grid, save)
     if not window and screenshot is None:
         return 0
 
@@ -749,6 +746,13 @@ def inspect_command(args):
     return 0
 
 
+def _save(data, path):
+    """Write a pyvista dataset atomically (``--save``) and say which arrays it holds."""
+    with atomic_output(path) as tmp:
+        data.save(tmp)
+    print(f"cloudmeta: wrote {path} (arrays: {', '.join(data.point_data.keys())})")
+
+
 def _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, save, window):
     """``inspect SCENE --grid GRID``: the grid | fit | difference panels of one layer of voxels."""
     import pyvista as pv
@@ -769,9 +773,7 @@ def _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, s
           f"{voxels.shape[axis]} ({'xyz'[axis]} = {float(compared.field_data['position'][0]):.4g}), slice relative "
           f"L2 error {error:.4f}")
     if save is not None:
-        with atomic_output(save) as tmp:
-            compared.save(tmp)
-        print(f"cloudmeta: wrote {save} (arrays: {', '.join(compared.point_data.keys())})")
+        _save(compared, save)
     if not window and screenshot is None:
         return 0
     if screenshot is not None:
