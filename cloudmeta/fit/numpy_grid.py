@@ -32,7 +32,6 @@ def read_numpy(path, *, variable=None, time=None, box=None):
             raise InputError(f"{path}: a .npy file holds one array: no variable to choose ({variable!r})")
         values = _load(path, lambda: np.load(path, allow_pickle=False))
         name = "density"
-        stored = None
         side = sidecar(path)
         if box is None:
             if not side.is_file():

@@ -17,7 +17,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from ..kernels.fluence import COLLISIONS, ENVIRONMENT, FLIGHTS, cell_scattering, trace_photons
+from ..kernels.fluence import ENVIRONMENT, FLIGHTS, cell_scattering, trace_photons
 from ..kernels.kinds import DIRECTIONAL
 from ..kernels.optics import phase
 from ..kernels.records import PhotonSources, RadianceGrid
