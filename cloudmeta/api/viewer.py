@@ -692,8 +692,6 @@ def inspect_command(args):
     their difference (``compare_slice``); --slice picks the layer (default the middle of the box along z),
     --save writes that layer's three arrays, and --resolution is not used.
     """
-    import pyvista as pv
-
     scene = load_scene(args.scene)
     resolution = _check_resolution(args.resolution)
     screenshot = _check_output("--screenshot", args.screenshot, SCREENSHOT_SUFFIXES) if args.screenshot else None
@@ -722,9 +720,7 @@ def inspect_command(args):
     if not window and screenshot is None:
         return 0
 
-    if screenshot is not None:
-        _prepare_off_screen()
-    plotter = pv.Plotter(off_screen=screenshot is not None, window_size=WINDOW_SIZE)
+    plotter = _plotter(screenshot, window_size=WINDOW_SIZE)
     plotter.set_background((0.08, 0.09, 0.12), top=(0.30, 0.34, 0.42))
     try:
         if plane is not None:
@@ -735,15 +731,29 @@ def inspect_command(args):
                   f"{sampled.spacing[0]:.4g}")
         else:
             draw_volume(plotter, scene, grid, widgets=screenshot is None, balls=balls)
-        if screenshot is not None:
-            with atomic_output(screenshot) as tmp:
-                plotter.screenshot(tmp)
-            print(f"cloudmeta: wrote {screenshot}")
-        else:
-            plotter.show(title=f"cloudmeta inspect {args.scene}")
+        _show(plotter, screenshot, f"cloudmeta inspect {args.scene}")
     finally:
         plotter.close()
     return 0
+
+
+def _plotter(screenshot, **options):
+    """A pyvista plotter: off screen when the view goes to a ``screenshot`` file."""
+    import pyvista as pv
+
+    if screenshot is not None:
+        _prepare_off_screen()
+    return pv.Plotter(off_screen=screenshot is not None, **options)
+
+
+def _show(plotter, screenshot, title):
+    """The view in a window, or its picture written atomically to ``screenshot`` (off screen)."""
+    if screenshot is None:
+        plotter.show(title=title)
+        return
+    with atomic_output(screenshot) as tmp:
+        plotter.screenshot(tmp)
+    print(f"cloudmeta: wrote {screenshot}")
 
 
 def _save(data, path):
@@ -755,8 +765,6 @@ def _save(data, path):
 
 def _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, save, window):
     """``inspect SCENE --grid GRID``: the grid | fit | difference panels of one layer of voxels."""
-    import pyvista as pv
-
     from ..fit import read_grid
     from .io import same_file
 
@@ -776,10 +784,7 @@ def _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, s
         _save(compared, save)
     if not window and screenshot is None:
         return 0
-    if screenshot is not None:
-        _prepare_off_screen()
-    plotter = pv.Plotter(shape=(1, 3), off_screen=screenshot is not None, window_size=COMPARE_WINDOW,
-                         border=False)
+    plotter = _plotter(screenshot, shape=(1, 3), window_size=COMPARE_WINDOW, border=False)
     count = sum(len(m.blob.weights) for m in scene.media)
     grid_label = Path(grid_path).name + (f" ({voxels.variable})" if voxels.variable else "")
     try:
@@ -787,12 +792,7 @@ def _inspect_against_grid(args, scene, grid_path, variable, plane, screenshot, s
             plotter.subplot(0, column)
             plotter.set_background((0.08, 0.09, 0.12), top=(0.30, 0.34, 0.42))
         draw_compare(plotter, compared, axis, grid_label, f"{Path(args.scene).name} ({count:,} balls)")
-        if screenshot is not None:
-            with atomic_output(screenshot) as tmp:
-                plotter.screenshot(tmp)
-            print(f"cloudmeta: wrote {screenshot}")
-        else:
-            plotter.show(title=f"cloudmeta inspect {args.scene} --grid {grid_path}")
+        _show(plotter, screenshot, f"cloudmeta inspect {args.scene} --grid {grid_path}")
     finally:
         plotter.close()
     return 0

@@ -130,3 +130,17 @@ def elevate(c, out):
     for i in range(1, n + 1):
         a = i / (n + 1.0)
         out[i] = a * c[i - 1] + (1.0 - a) * c[i]
+
+
+@njit(**NJIT_INLINE)
+def store_curve(lo, hi, c, n, t0, t1, c0, c1, c2, c3, c4, c5, c6):
+    """Row n of a table of degree-6 curves: the interval [t0, t1] in lo, hi and the control values in c."""
+    lo[n] = t0
+    hi[n] = t1
+    c[n, 0] = c0
+    c[n, 1] = c1
+    c[n, 2] = c2
+    c[n, 3] = c3
+    c[n, 4] = c4
+    c[n, 5] = c5
+    c[n, 6] = c6

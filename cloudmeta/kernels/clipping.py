@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 
 from .config import NJIT, NJIT_INLINE
-from .bernstein import _casteljau_rows, _fma
+from .bernstein import _casteljau_rows, _fma, store_curve
 
 #: an iteration that keeps more than this fraction of its interval is stalling (near a multiple root):
 #: split the interval in half instead
@@ -82,6 +82,14 @@ def _walk(a0, a1, a2, a3, a4, a5, a6):
 
 
 @njit(**NJIT_INLINE)
+def _walk_from(c0, c1, c2, c3, c4, c5, c6):
+    """``_walk`` on c_0's side: the curve as it is when c_0 > 0, negated when c_0 < 0."""
+    if c0 > 0.0:
+        return _walk(c0, c1, c2, c3, c4, c5, c6)
+    return _walk(-c0, -c1, -c2, -c3, -c4, -c5, -c6)
+
+
+@njit(**NJIT_INLINE)
 def _hull7(c0, c1, c2, c3, c4, c5, c6):
     """[smin, smax] of a degree-6 curve (see ``hull_crossing``); smin > smax: nowhere. The left end is the
     first crossing of the hull's chain on c_0's side walked from the left (the lower chain when c_0 > 0,
@@ -89,18 +97,12 @@ def _hull7(c0, c1, c2, c3, c4, c5, c6):
     smin = 0.0
     smax = 1.0
     if c0 != 0.0:
-        if c0 > 0.0:
-            x = _walk(c0, c1, c2, c3, c4, c5, c6)
-        else:
-            x = _walk(-c0, -c1, -c2, -c3, -c4, -c5, -c6)
+        x = _walk_from(c0, c1, c2, c3, c4, c5, c6)
         if x < 0.0:
             return 2.0, -1.0
         smin = x
     if c6 != 0.0:
-        if c6 > 0.0:
-            x = _walk(c6, c5, c4, c3, c2, c1, c0)
-        else:
-            x = _walk(-c6, -c5, -c4, -c3, -c2, -c1, -c0)
+        x = _walk_from(c6, c5, c4, c3, c2, c1, c0)
         if x < 0.0:
             return 2.0, -1.0
         smax = 1.0 - x
@@ -330,15 +332,7 @@ def clip_roots(g, tol_s, eps_g, st_lo, st_hi, st_c, roots, rising):
             (a0, a1, a2, a3, a4, a5, a6), (d0, d1, d2, d3, d4, d5, d6) = _casteljau_rows(
                 a0, a1, a2, a3, a4, a5, a6, 0.5)
             mid = 0.5 * (a_lo + a_hi)
-            st_lo[top] = mid
-            st_hi[top] = a_hi
-            st_c[top, 0] = d0
-            st_c[top, 1] = d1
-            st_c[top, 2] = d2
-            st_c[top, 3] = d3
-            st_c[top, 4] = d4
-            st_c[top, 5] = d5
-            st_c[top, 6] = d6
+            store_curve(st_lo, st_hi, st_c, top, mid, a_hi, d0, d1, d2, d3, d4, d5, d6)
             top += 1
             a_hi = mid
             continue
@@ -442,13 +436,10 @@ def hull_crossing(c, hull):
         if x < 0.0:
             return 2.0, -1.0
         smin = x / n
-        if cn != 0.0 and (cn < 0.0) == (c0 < 0.0):
-            x = _first_crossing(c, hull, m, False)
-            smax = x / n
-            return smin, smax
+        if cn != 0.0 and (cn < 0.0) == (c0 < 0.0):  # the same chain serves the right end
+            return smin, _first_crossing(c, hull, m, False) / n
     if cn != 0.0:
-        m = _chain(c, cn < 0.0, hull)
-        x = _first_crossing(c, hull, m, False)
+        x = _first_crossing(c, hull, _chain(c, cn < 0.0, hull), False)
         if x < 0.0:
             return 2.0, -1.0
         smax = x / n

@@ -64,6 +64,7 @@ import numpy as np
 from numba import njit
 
 from .config import NJIT, NJIT_INLINE
+from .bernstein import store_curve
 from .kinds import BLINN, MURAKAMI4, NISHIMURA, WYVILL6
 
 
@@ -409,17 +410,15 @@ def keep_piece(ta, tb, tmin, tmax):
     return tb > ta and tb > tmin and ta < tmax
 
 
-@njit(**NJIT)
-def chord_pieces(kernel, a, b, q, t0, t1, tmin, tmax, rows, n):
-    """The pieces of q k(u) (nishimura, blinn; blobbiness b) on the chord [t0, t1] with 0 < a <= 1, as
-    (t0, t1, control values) rows of rows.chord_t0, chord_t1, chord_c (a records.SweepScratch) from index
-    n on. Pieces of zero length or outside (tmin, tmax) are left out; all others are counted, but only
-    rows below the arrays' capacity are written. Returns n plus their number. Consecutive pieces share
-    their end t bit for bit.
+@njit(**NJIT_INLINE)
+def chord_pieces(kernel, a, b, q, t0, t1, tmin, tmax, p_t0, p_t1, p_c, n):
+    """The pieces of q k(u) (nishimura, blinn; blobbiness b) on the chord [t0, t1] with 0 < a <= 1, as rows
+    (t0, t1, control values) of p_t0, p_t1, p_c from index n on. Pieces of zero length or outside
+    (tmin, tmax) are left out; all others are counted, but only rows below the arrays' capacity are written.
+    Returns n plus their number. Consecutive pieces share their end t bit for bit.
 
-    sweep.gather_chords runs this same loop written out (see there why); the tests check that the two
-    agree. The helpers it calls are inlined (NJIT_INLINE) for the same reason."""
-    p_t0, p_t1, p_c = rows.chord_t0, rows.chord_t1, rows.chord_c
+    Written on scalars and inlined (as are its helpers) into sweep.gather_chords: a call there that takes
+    the arrays would make numba count references to them on every chord."""
     cap = p_t0.shape[0]
     inner, s_stop = piece_plan(kernel, a)
     alpha = 0.0
@@ -432,17 +431,11 @@ def chord_pieces(kernel, a, b, q, t0, t1, tmin, tmax, rows, n):
             kl = keep_piece(ta, tl, tmin, tmax)
             kr = keep_piece(tr, tb, tmin, tmax)
             if (kl and n < cap) or (kr and n + kl < cap):
-                c = piece_values(kernel, a, b, q, alpha, beta)
+                c0, c1, c2, c3, c4, c5, c6 = piece_values(kernel, a, b, q, alpha, beta)
                 if kl and n < cap:
-                    p_t0[n] = ta
-                    p_t1[n] = tl
-                    for j in range(7):
-                        p_c[n, j] = c[j]
-                if kr and n + kl < cap:
-                    p_t0[n + kl] = tr
-                    p_t1[n + kl] = tb
-                    for j in range(7):
-                        p_c[n + kl, 6 - j] = c[j]
+                    store_curve(p_t0, p_t1, p_c, n, ta, tl, c0, c1, c2, c3, c4, c5, c6)
+                if kr and n + kl < cap:  # the mirror: the same values, reversed
+                    store_curve(p_t0, p_t1, p_c, n + kl, tr, tb, c6, c5, c4, c3, c2, c1, c0)
             n += kl + kr
             alpha = beta
             ta = tl
@@ -450,10 +443,10 @@ def chord_pieces(kernel, a, b, q, t0, t1, tmin, tmax, rows, n):
             continue
         if kind != DONE and keep_piece(ta, tb, tmin, tmax):
             if n < cap:
-                c = piece_values(kernel, a, b, q, alpha, beta) if kind == MIDDLE else nishimura_inner_values(a, q)
-                p_t0[n] = ta
-                p_t1[n] = tb
-                for j in range(7):
-                    p_c[n, j] = c[j]
+                if kind == MIDDLE:
+                    c0, c1, c2, c3, c4, c5, c6 = piece_values(kernel, a, b, q, alpha, beta)
+                else:
+                    c0, c1, c2, c3, c4, c5, c6 = nishimura_inner_values(a, q)
+                store_curve(p_t0, p_t1, p_c, n, ta, tb, c0, c1, c2, c3, c4, c5, c6)
             n += 1
         return n

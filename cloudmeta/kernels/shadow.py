@@ -26,7 +26,7 @@ from .config import NJIT, NJIT_INLINE
 from .bernstein import NCOEF, bernstein_cumulative
 from .clipping import clip_roots
 from .density import rho_integral
-from .sweep import NOISE, alloc_scratch, capacity_of, composite, gather_chords
+from .sweep import NOISE, composite, gather_all_chords
 
 
 @njit(**NJIT_INLINE)
@@ -116,10 +116,7 @@ def column_density(o, d, tmin, tmax, blob, mode, tol_t, cand, n_cand, scratch):
     cand[:n_cand]), rho by density ``mode`` (docs/model.md §4): the optical depth over the medium's scale.
     Grows the scratch when the ray meets more chords than it holds. Returns (scratch, the integral, the
     entries into the medium)."""
-    n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
-    if n_p > capacity_of(scratch):
-        scratch = alloc_scratch(2 * n_p)
-        gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    scratch, n_p = gather_all_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p == 0:
         return scratch, 0.0, 0
     n_iv = composite(n_p, tmin, tmax, scratch)

@@ -12,12 +12,11 @@ import numpy as np
 from numba import njit
 
 from .config import NJIT, NJIT_INLINE
-from .bernstein import NCOEF, _casteljau_rows, subdivide
+from .bernstein import NCOEF, _casteljau_rows, store_curve, subdivide
 from .density import density_mean
 from .clipping import STACK_DEPTH, clip_roots
 from .records import SweepScratch
-from .metaball import (DONE, MIDDLE, PAIR, chord, control_values, is_piecewise, keep_piece, next_piece,
-                       nishimura_inner_values, pair_ends, piece_plan, piece_values)
+from .metaball import chord, chord_pieces, control_values, is_piecewise
 
 #: inside pieces per composite interval at most: a degree-6 curve changes class at most 6 times
 PIECES_PER_INTERVAL = 4
@@ -141,10 +140,10 @@ def gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch):
     [tmin, tmax], with their control values.
 
     wyvill6 and murakami4 give one exact curve per chord; nishimura and blinn (``blobbiness`` b) give
-    several pieces per chord, each a degree-6 curve within 1e-12 |q| of the kernel: the loop of
-    metaball.chord_pieces, written out here on scalars with helpers that numba inlines. A call left in
-    this function (one that takes the arrays, or any non-inlined jitted one) would make numba count
-    references to all of its arrays on every call, which costs the polynomial kernels about 5% per ray.
+    several pieces per chord, each a degree-6 curve within 1e-12 |q| of the kernel (metaball.chord_pieces,
+    inlined). A call left in this function (one that takes the arrays, or any non-inlined jitted one) would
+    make numba count references to all of its arrays on every call, which costs the polynomial kernels
+    about 5% per ray.
     Returns how many curves there are; only the first ``capacity`` are written, so a larger count tells
     the caller to grow the scratch and call again.
     """
@@ -166,64 +165,19 @@ def gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch):
                 control_values(kernel, min(a, 1.0), weights[i], p_c[n])
             n += 1
             continue
-        a = min(a, 1.0)
-        q = weights[i]
-        inner, s_stop = piece_plan(kernel, a)
-        alpha = 0.0
-        ta = t0
-        tb = t1
-        while True:
-            kind, beta = next_piece(kernel, a, blobbiness, inner, s_stop, alpha)
-            if kind == PAIR:
-                tl, tr = pair_ends(t0, t1, beta)
-                kl = keep_piece(ta, tl, tmin, tmax)
-                kr = keep_piece(tr, tb, tmin, tmax)
-                if (kl and n < cap) or (kr and n + kl < cap):
-                    c0, c1, c2, c3, c4, c5, c6 = piece_values(kernel, a, blobbiness, q, alpha, beta)
-                    if kl and n < cap:
-                        p_t0[n] = ta
-                        p_t1[n] = tl
-                        p_c[n, 0] = c0
-                        p_c[n, 1] = c1
-                        p_c[n, 2] = c2
-                        p_c[n, 3] = c3
-                        p_c[n, 4] = c4
-                        p_c[n, 5] = c5
-                        p_c[n, 6] = c6
-                    m = n + kl
-                    if kr and m < cap:  # the mirror: the same values, reversed
-                        p_t0[m] = tr
-                        p_t1[m] = tb
-                        p_c[m, 0] = c6
-                        p_c[m, 1] = c5
-                        p_c[m, 2] = c4
-                        p_c[m, 3] = c3
-                        p_c[m, 4] = c2
-                        p_c[m, 5] = c1
-                        p_c[m, 6] = c0
-                n += kl + kr
-                alpha = beta
-                ta = tl
-                tb = tr
-                continue
-            if kind != DONE and keep_piece(ta, tb, tmin, tmax):
-                if n < cap:
-                    if kind == MIDDLE:
-                        c0, c1, c2, c3, c4, c5, c6 = piece_values(kernel, a, blobbiness, q, alpha, beta)
-                    else:
-                        c0, c1, c2, c3, c4, c5, c6 = nishimura_inner_values(a, q)
-                    p_t0[n] = ta
-                    p_t1[n] = tb
-                    p_c[n, 0] = c0
-                    p_c[n, 1] = c1
-                    p_c[n, 2] = c2
-                    p_c[n, 3] = c3
-                    p_c[n, 4] = c4
-                    p_c[n, 5] = c5
-                    p_c[n, 6] = c6
-                n += 1
-            break
+        n = chord_pieces(kernel, min(a, 1.0), blobbiness, weights[i], t0, t1, tmin, tmax, p_t0, p_t1, p_c, n)
     return n
+
+
+@njit(**NJIT_INLINE)
+def gather_all_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch):
+    """``gather_chords`` into a scratch large enough for all of them (a new one, twice the count, when the
+    ray meets more chords than this one holds). Returns (scratch, the number of curves)."""
+    n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    if n_p > capacity_of(scratch):
+        scratch = alloc_scratch(2 * n_p)
+        gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    return scratch, n_p
 
 
 @njit(**NJIT_INLINE)
@@ -272,14 +226,7 @@ def add_active(lo, hi, act, n_act, p_t0, p_t1, p_c):
         if hi < p_t1[i]:
             (b0, b1, b2, b3, b4, b5, b6), (r0, r1, r2, r3, r4, r5, r6) = _casteljau_rows(
                 r0, r1, r2, r3, r4, r5, r6, (hi - lo) / (p_t1[i] - lo))
-            p_t0[i] = hi
-            p_c[i, 0] = r0
-            p_c[i, 1] = r1
-            p_c[i, 2] = r2
-            p_c[i, 3] = r3
-            p_c[i, 4] = r4
-            p_c[i, 5] = r5
-            p_c[i, 6] = r6
+            store_curve(p_t0, p_t1, p_c, i, hi, p_t1[i], r0, r1, r2, r3, r4, r5, r6)
         else:
             b0, b1, b2, b3, b4, b5, b6 = r0, r1, r2, r3, r4, r5, r6
         a0 += b0
@@ -322,15 +269,7 @@ def composite(n_p, tmin, tmax, scratch):
         if n_act == 0 or hi <= lo:
             continue
         a0, a1, a2, a3, a4, a5, a6, mag = add_active(lo, hi, act, n_act, p_t0, p_t1, p_c)
-        iv_c[n_iv, 0] = a0
-        iv_c[n_iv, 1] = a1
-        iv_c[n_iv, 2] = a2
-        iv_c[n_iv, 3] = a3
-        iv_c[n_iv, 4] = a4
-        iv_c[n_iv, 5] = a5
-        iv_c[n_iv, 6] = a6
-        iv_t0[n_iv] = lo
-        iv_t1[n_iv] = hi
+        store_curve(iv_t0, iv_t1, iv_c, n_iv, lo, hi, a0, a1, a2, a3, a4, a5, a6)
         iv_mag[n_iv] = mag / NCOEF
         n_iv += 1
     return n_iv
@@ -421,10 +360,7 @@ def trace_blob(o, d, tmin, tmax, blob, tol_t, cand, n_cand, first_only, scratch)
     """Chords, composite and inside pieces of one ray through ``blob`` (a records.BlobRecord; its balls
     cand[:n_cand]); grows the scratch when the ray meets more chords than it holds.
     Returns (scratch, n_pieces, n_transitions)."""
-    n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
-    if n_p > capacity_of(scratch):
-        scratch = alloc_scratch(2 * n_p)
-        gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    scratch, n_p = gather_all_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p == 0:
         return scratch, 0, 0
     n_iv = composite(n_p, tmin, tmax, scratch)
@@ -564,10 +500,7 @@ def sweep_first_inside(n_p, threshold, tmin, tmax, tol_t, scratch):
 def first_inside(o, d, tmin, tmax, blob, tol_t, cand, n_cand, scratch):
     """first_entry's answer (the first entering root within [tmin, tmax], tmin if the ray starts inside,
     inf if it never enters) by the incremental sweep, which stops at the first entry. Returns (scratch, t)."""
-    n_p = gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
-    if n_p > capacity_of(scratch):
-        scratch = alloc_scratch(2 * n_p)
-        gather_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
+    scratch, n_p = gather_all_chords(o, d, tmin, tmax, blob, cand, n_cand, scratch)
     if n_p == 0:
         return scratch, np.inf
     return scratch, sweep_first_inside(n_p, blob.threshold, tmin, tmax, tol_t, scratch)

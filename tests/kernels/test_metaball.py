@@ -94,8 +94,8 @@ def test_falloff_matches_model(kernel, rng):
 def chord_pieces(kernel, a, b=4.0, q=1.0, t0=0.0, t1=1.0, cap=4096):
     from cloudmeta.kernels.sweep import alloc_scratch
     rows = alloc_scratch(cap)
-    n = km.chord_pieces(kernel, a, b, q, t0, t1, -np.inf, np.inf, rows, 0)
     p0, p1, pc = rows.chord_t0, rows.chord_t1, rows.chord_c
+    n = km.chord_pieces(kernel, a, b, q, t0, t1, -np.inf, np.inf, p0, p1, pc, np.int64(0))
     assert n <= cap
     order = np.argsort(p0[:n])
     return p0[:n][order], p1[:n][order], pc[:n][order]
@@ -236,13 +236,13 @@ def test_gather_chords_counts_pieces_beyond_capacity():
                              small) == n
         for k in range(3):
             np.testing.assert_array_equal(small[k][:3], big[k][:3])
-        if per_chord is None:  # gather_chords writes out chord_pieces' loop: the same rows, bit for bit
+        if per_chord is None:  # gather_chords inlines chord_pieces: the same rows, bit for bit
             rows = alloc_scratch(n)
             p0, p1, pc = rows.chord_t0, rows.chord_t1, rows.chord_c
             m = 0
             for i in range(3):
                 t0, t1, a = km.chord(o, d, centers[i], frames[i])
-                m = km.chord_pieces(kernel, min(a, 1.0), b, weights[i], t0, t1, 0.0, np.inf, rows, m)
+                m = km.chord_pieces(kernel, min(a, 1.0), b, weights[i], t0, t1, 0.0, np.inf, p0, p1, pc, np.int64(m))
             assert m == n
             np.testing.assert_array_equal(big[0][:n], p0)
             np.testing.assert_array_equal(big[1][:n], p1)
