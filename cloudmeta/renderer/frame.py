@@ -22,7 +22,7 @@ from .denoise import aux_images, denoise_paths, require_denoiser
 from .fluence import with_radiance_grid
 from .estimate import estimated_rel_rmse, frame_scattered_mean, with_estimate
 from .approximate import approximation_error, check_approximate
-from .multiple import check_multiple, render_multiple
+from .multiple import check_multiple, plan_paths, render_multiple
 from .pack import pack_scene, quadrature, without_maps
 from .calibrate import pilot_quality
 from .quality import FrameSettings, resolve_settings
@@ -33,7 +33,8 @@ from .single import render_single
 class Estimator:
     """An estimator of ``render.scattering``: what it refuses in a scene (raises SceneError; None: nothing),
     and the Monte Carlo part it adds to the deterministic single-scattering image (None: none), called as
-    paths(scene, seed=, progress=, rows=, columns=, packed=) -> (mean, stderr), both H x W x 3; and how its
+    paths(scene, seed=, progress=, rows=, columns=, packed=, plan=) -> (mean, stderr), both H x W x 3 (plan: the
+    frame's renderer.multiple.PathPlan, or None for render.ms_spp's count); and how its
     approximation's error is measured with ``error=True`` (None: it approximates nothing), called as
     approximation(scene, image, packed, window, seed=) -> an approximate.ApproximationError."""
     check: Callable | None = None
@@ -78,6 +79,9 @@ class RenderResult:
     #: and the quadrature the image was rendered at (a renderer.quality.Quality: calibrated, refined)
     settings: FrameSettings | None = None
     quality: object | None = None
+    #: multiple scattering with planned paths: the renderer.multiple.PathPlan (paths per block, what the pilot
+    #: measured, the relative RMSE it predicted); None otherwise
+    plan: object | None = None
 
     def cost(self):
         """Per pixel with media (alpha > 0), the mean count of quadrature nodes, exact shadow rays, map lookups
@@ -141,9 +145,12 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     else:
         err = None
         image, nearest, counts = render_single(scene, packed, window, progress)
+    plan = None
     if estimator.paths is not None:
+        if settings.paths_target is not None:  # planned over the whole frame: the same plan for every tile
+            plan = plan_paths(scene, packed, settings.paths_target, scattered.mean, seed, progress)
         mean, stderr = estimator.paths(scene, seed=seed, progress=progress, rows=rows, columns=columns,
-                                       packed=packed)
+                                       packed=packed, plan=plan)
         raw = None
         if denoiser is not None:
             raw = image.copy()
@@ -159,6 +166,8 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     # the image's estimated relative RMSE, of the error as returned (Monte Carlo standard error included), over the
     # frame's own scattered light where it can tell it
     estimated = None if err is None else estimated_rel_rmse(image, err, scattered_norm(image, nearest))
+    if estimated is None and plan is not None:  # the paths' own noise, which planned paths always know
+        estimated = estimated_rel_rmse(image, stderr, scattered_norm(image, nearest))
     approximation = None
     if error and estimator.approximation is not None:
         approximation = estimator.approximation(scene, image, packed, window, seed=seed)
@@ -166,7 +175,7 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
                         error=None if not error else err.astype(np.float32), approximation=approximation,
                         scattered=scattered, estimated=estimated, counts=counts,
                         raw=None if denoiser is None else raw.astype(np.float32), settings=settings,
-                        quality=quality)
+                        quality=quality, plan=plan)
 
 
 def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False, denoise=False):

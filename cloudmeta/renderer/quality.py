@@ -27,6 +27,10 @@ growth          1       1       1       0          the step limits max_tau and m
                                                    (renderer.calibrate.LADDER)
 (grid)          24^3    40^3    56^3    56^3       the grid method's cells and photons
                 2^21    2^23    2^25    2^25       (renderer.fluence; ``render.grid`` overrides)
+(paths)         0.10    0.03    0.01    0.003      multiple scattering: the relative RMSE of the paths'
+                                                   part against the scattered light that the planned
+                                                   paths aim at (renderer.multiple; ``render.ms_spp``
+                                                   gives a fixed count instead)
 =============== ======= ======= ======= ========== ====================================================
 
 The scene's length L is its bounding-box diagonal, unless some of its geometry lies far from the rest:
@@ -77,6 +81,9 @@ class Preset:
     #: the approximate mode's grid method: (cells, as the side of a cube of cells of the media's box's volume;
     #: photons) (renderer.fluence)
     grid: tuple
+    #: multiple scattering: the relative RMSE of the image's Monte Carlo part, against the frame's scattered
+    #: light, that the planned paths aim at (renderer.multiple); None: no plan, ``render.ms_spp`` or its fallback
+    paths_target: float | None = None
 
 
 #: the presets: each is a target of the image's RMSE over its mean scattered radiance
@@ -89,15 +96,15 @@ class Preset:
 #: default's reached lower error in 2.3 s). ``reference`` has no target: it is neither calibrated nor given a
 #: grid of its own (fine's)
 PRESETS = {
-    "draft": Preset(target=3e-3, start=1.0, grid=(24, 1 << 21), quadrature=dict(
+    "draft": Preset(paths_target=0.10, target=3e-3, start=1.0, grid=(24, 1 << 21), quadrature=dict(
         tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9, growth=1.0)),
-    "default": Preset(target=1e-3, start=0.0, grid=(40, 1 << 23), quadrature=dict(
+    "default": Preset(paths_target=0.03, target=1e-3, start=0.0, grid=(40, 1 << 23), quadrature=dict(
         tolerance=1e-3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-4, root_tolerance=1e-9,
         growth=1.0)),
-    "fine": Preset(target=3e-4, start=-1.0, grid=(56, 1 << 25), quadrature=dict(
+    "fine": Preset(paths_target=0.01, target=3e-4, start=-1.0, grid=(56, 1 << 25), quadrature=dict(
         tolerance=3e-4, max_tau=0.175, max_length=1 / 32, max_angle=0.1, cutoff=1e-5, root_tolerance=1e-9,
         growth=1.0)),
-    "reference": Preset(target=None, start=None, grid=(56, 1 << 25), quadrature=dict(
+    "reference": Preset(paths_target=0.003, target=None, start=None, grid=(56, 1 << 25), quadrature=dict(
         tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0, root_tolerance=1e-9,
         growth=0.0)),
 }
@@ -144,10 +151,18 @@ class FrameSettings:
     #: the approximate mode's grid method: (cells, photons, deposit: kernels.fluence.FLIGHTS or COLLISIONS), the
     #: preset's where render.grid leaves them out; None in every other mode
     grid: tuple | None = field(default=None)
+    #: multiple scattering: paths per pixel (render.ms_spp), or None where they are planned to ``paths_target``
+    paths: int | None = None
+    #: multiple scattering with planned paths: the relative RMSE they aim at (render.error where given, else the
+    #: preset's); None in every other case
+    paths_target: float | None = None
 
     @property
     def target(self):
-        """The relative RMSE the frame aims at: render.error where given, else the preset's (None: none)."""
+        """The relative RMSE the frame aims at: render.error where given, else the preset's (None: none); with
+        planned multiple-scattering paths, theirs (the paths' noise is then most of the image's error)."""
+        if self.paths_target is not None:
+            return self.paths_target
         return self.error if self.error is not None else self.preset.target
 
 
@@ -179,7 +194,10 @@ def resolve_settings(scene) -> FrameSettings:
                 COLLISIONS if deposit == "collisions" else FLIGHTS)
     calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
                  and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
+    paths_target = None
+    if r.scattering == "multiple" and r.ms_spp is None:
+        paths_target = r.error if r.error is not None else preset.paths_target
     return FrameSettings(quality=r.quality, preset=preset, shadows=ShadowMode(r.shadows),
                          shadow_map=int(r.shadow_map or SHADOW_MAP_RESOLUTION),
                          quadrature=resolve_quality(r, scene.length_scale()), calibrate=bool(calibrate),
-                         error=r.error, grid=grid)
+                         error=r.error, grid=grid, paths=r.ms_spp, paths_target=paths_target)

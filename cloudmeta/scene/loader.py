@@ -151,11 +151,20 @@ def _render(top, overrides=None):
         octaves=_octaves(n),
         grid=_grid(n),
         max_order=n.integer("max_order", 64, **_int_range(1, lim.MAX_ORDER)),
-        ms_spp=n.integer("ms_spp", 16, **_int_range(1, lim.MAX_SPP)),
+        ms_spp=_ms_spp(n),
         track_from=n.integer("track_from", 2, **_int_range(2, lim.MAX_ORDER + 1)),
         error=n.number("error", None, check=lambda v: lim.MIN_ERROR_TARGET <= v <= 0.5,
                        expect=f"a relative RMSE from {lim.MIN_ERROR_TARGET:g} to 0.5 (docs/error_estimate.md)"),
         calibrate=n.flag("calibrate", True))
+
+
+def _ms_spp(render):
+    """render.ms_spp: paths per pixel, or ``auto`` (the default: the renderer plans them to the preset's target)."""
+    value, given = render._raw("ms_spp", None)
+    if given and value == "auto":
+        return None
+    check = _int_range(1, lim.MAX_SPP)
+    return render.integer("ms_spp", None, check=check["check"], expect=check["expect"] + ", or auto")
 
 
 def _octaves(render):

@@ -83,7 +83,7 @@ class RenderSettings:
     octaves: tuple = OCTAVES    #: approximate, octaves: (count, a, b, c)
     grid: tuple | None = None   #: approximate, grid: (cells, photons, deposit), None: the preset's, flights
     max_order: int = 64         #: multiple: the highest scattering order
-    ms_spp: int = 16            #: multiple: Monte Carlo paths per pixel
+    ms_spp: int | None = None   #: multiple: Monte Carlo paths per pixel; None: planned to the preset's target
     track_from: int = 2         #: multiple: the first vertex reached by a tracked flight (docs/model.md §10.1)
     error: float | None = None  #: a target relative RMSE: the quadrature is refined until the estimate meets it
     calibrate: bool = True      #: single, approximate: the preset's settings calibrated on the pilot (renderer.pilot)

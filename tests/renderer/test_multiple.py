@@ -284,10 +284,13 @@ def test_scene_keys(tmp_path):
     scene = _scene(tmp_path, LIT)
     assert (scene.render.scattering, scene.render.max_order, scene.render.ms_spp) == ("multiple", 16, 8)
     plain = _scene(tmp_path, LIT.replace("render: {scattering: multiple, max_order: 16, ms_spp: 8}", ""), "p.yaml")
-    assert (plain.render.scattering, plain.render.max_order, plain.render.ms_spp) == ("single", 64, 16)
+    assert (plain.render.scattering, plain.render.max_order, plain.render.ms_spp) == ("single", 64, None)
+    auto = _scene(tmp_path, LIT.replace("ms_spp: 8", "ms_spp: auto"), "a.yaml")
+    assert auto.render.ms_spp is None
     assert plain.render.track_from == 2
     for bad, key in (("scattering: many", "render.scattering"), ("max_order: 0", "render.max_order"),
-                     ("ms_spp: 1.5", "render.ms_spp"), ("track_from: 1", "render.track_from")):
+                     ("ms_spp: 1.5", "render.ms_spp"), ("ms_spp: many", "render.ms_spp: .*or auto"),
+                     ("track_from: 1", "render.track_from")):
         text = LIT.replace("render: {scattering: multiple, max_order: 16, ms_spp: 8}", f"render: {{{bad}}}")
         with pytest.raises(SceneError, match=key):
             _scene(tmp_path, text, "bad.yaml")
@@ -343,3 +346,48 @@ def test_tile_equals_the_same_pixels_of_the_frame(tmp_path):
     whole = cm.render(scene, progress=False, seed=2)
     np.testing.assert_array_equal(cm.render(scene, progress=False, seed=2, rows=(1, 4), columns=(2, 5)),
                                   whole[1:4, 2:5])
+
+
+# ------------------------------------------------------------------------------------------ planned paths
+
+PLANNED = LIT.replace("image: {width: 6, height: 6, spp: 1}", "image: {width: 20, height: 18, spp: 1}").replace(
+    "render: {scattering: multiple, max_order: 16, ms_spp: 8}", "render: {scattering: multiple, max_order: 16, quality: draft}")
+
+
+def test_planned_paths_meet_their_target_and_tiles_agree(tmp_path):
+    """ms_spp auto: a pilot over the frame plans paths per 16 x 16 block so that the paths' estimated relative
+    RMSE against the scattered light meets the preset's target (draft: 10 %); the estimate the render reports is
+    within the target, the plan gives the blocks that hold the cloud more paths than the empty ones, and a tile
+    is the same pixels of the whole frame (one plan per frame)."""
+    from cloudmeta.renderer.frame import render_frame
+    from cloudmeta.renderer.multiple import BLOCK, MIN_PATHS
+    scene = _scene(tmp_path, PLANNED)
+    result = render_frame(scene, progress=False, seed=3)
+    plan = result.plan
+    assert plan is not None and plan.target == 0.10 and result.settings.target == 0.10
+    assert plan.paths.shape == (2, 2) and plan.paths.min() >= MIN_PATHS
+    assert plan.paths.max() > MIN_PATHS  # the cloud's blocks need more than the floor
+    assert 0.0 < result.estimated <= 0.10
+    assert plan.predicted <= 0.10
+    tile = render_frame(scene, progress=False, seed=3, rows=(BLOCK - 3, 18), columns=(2, 19))
+    np.testing.assert_array_equal(tile.image, result.image[BLOCK - 3:18, 2:19])
+    np.testing.assert_array_equal(tile.plan.paths, plan.paths)
+    # an explicit count is no plan, and render_multiple plans alone to the preset's target
+    fixed = render_frame(replace(scene, render=replace(scene.render, ms_spp=8)), progress=False, seed=3)
+    assert fixed.plan is None and fixed.settings.paths == 8
+    mean, err = render_multiple(scene, seed=3, plan=plan)
+    np.testing.assert_array_equal(mean, render_multiple(scene, seed=3, plan=plan, rows=(0, 18))[0])
+
+
+def test_plan_spends_paths_where_the_variance_is():
+    """allocate_paths: the fewest paths for the allowed sum of variances, each block's count in proportion to
+    its RMS per-path standard deviation, and no other allocation of as many paths does better."""
+    from cloudmeta.renderer.multiple import allocate_paths
+    total = np.array([[4.0, 1.0], [0.0, 16.0]])
+    size = np.full((2, 2), 3.0)
+    n = allocate_paths(total, size, 2.0)
+    used = lambda m: (total / np.where(m > 0, m, 1.0)).sum()  # noqa: E731
+    assert np.isclose(used(n), 2.0)
+    assert np.isclose(n[1, 1], 2 * n[0, 0]) and np.isclose(n[0, 0], 2 * n[0, 1]) and n[1, 0] == 0.0
+    uniform = np.where(total > 0, (n * size).sum() / (size[total > 0]).sum(), 0.0)
+    assert used(uniform) > used(n)
