@@ -66,7 +66,10 @@ def _render(args):
         estimate = args.error or scene.render.error is not None  # a target computes the estimate anyway
         result, took = _render_image(scene, progress=not args.quiet and sys.stderr.isatty(), error=estimate,
                                      denoise=args.denoise)
-        stops = encode_outputs(result.image, tmps, scene.render.colourspace, exposure, result.error, result.raw,
+        # the approximate mode's per-pixel error would be the quadrature's alone, far below the approximation's
+        # own (RenderResult.approximation, an image-level estimate): its EXR has no error channels
+        channels = None if scene.render.scattering == "approximate" else result.error
+        stops = encode_outputs(result.image, tmps, scene.render.colourspace, exposure, channels, result.raw,
                                display, white_balance, illuminant)
     _details(verbose, result)
     if stops is not None:
@@ -128,8 +131,10 @@ def _details(verbose, result):
     if result.error is not None:
         target = (f"render.error {settings.error:g}" if settings.error is not None else
                   f"quality {settings.quality}: {'none' if settings.target is None else f'{settings.target:g}'}")
-        verbose(f"estimated relative RMSE {result.estimated:.2e} (target of {target}; "
-                f"per pixel in the EXR's channels error.R/G/B)")
+        where = ("the quadrature's alone; the approximation's is the line's 'approximation error', and the EXR "
+                 "has no error channels" if result.approximation is not None else
+                 "per pixel in the EXR's channels error.R/G/B")
+        verbose(f"estimated relative RMSE {result.estimated:.2e} (target of {target}; {where})")
     if scattered is not None and scattered.level is not None:
         verbose(f"quadrature calibrated for quality {settings.quality}: {_level_words(scattered.level)}"
                 + ("" if scattered.predicted is None else

@@ -407,3 +407,18 @@ def test_errors_of_the_libraries_reach_the_user_as_cloudmetas(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("cloudmeta: error: scheduler nosuchproto://nowhere:1: cannot connect") and err.count("\n") == 1
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_approximate_mode_writes_no_error_channels(workdir, monkeypatch, capsys):
+    """--error in the approximate mode: the line gives the approximation's own estimate; the EXR holds no
+    per-pixel error channels, which would be the quadrature's alone (docs/approximate.md)."""
+    monkeypatch.chdir(workdir)
+    text = (workdir / "cumulus.yaml").read_text()
+    (workdir / "approx.yaml").write_text(text.replace("render: {quality: default}", "render: {quality: default, "
+                                                      "scattering: approximate}").replace("ambient:", "# ambient:"))
+    assert "scattering: approximate" in (workdir / "approx.yaml").read_text()
+    assert main(["render", "approx.yaml", "--width", "8", "--height", "8", "--quality", "draft", "-q", "-o",
+                 "a.exr", "--error"]) == 0
+    assert "approximation error" in _lines(capsys.readouterr().out)[-1]
+    image, _ = read_exr(workdir / "a.exr")
+    assert image.shape == (8, 8, 4)
