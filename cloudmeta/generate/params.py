@@ -97,9 +97,11 @@ PARAMETERS = {
     "cumulus": {
         **_COMMON,
         # the largest puffs sit on the body, the finer ones stand out of them: rounded masses with a rough,
-        # frayed outline (a perimeter dimension of ~1.28), where puffs all standing out as far read as a foam
-        # and a narrower spread of sizes within a level keeps the small puffs' detail from being swallowed
-        **_defaults(push=2.0, size_spread=2.0),
+        # frayed outline (a perimeter dimension of ~1.3), where puffs all standing out as far read as a foam;
+        # a narrower spread of sizes within a level keeps the small puffs' detail from being swallowed; the
+        # core is denser with the first puffs on the body, so the same density takes a higher optical depth
+        # along its most opaque ray (at 60 the cloud would be half as dense as before, misty)
+        **_defaults(push=2.0, size_spread=2.0, optical_depth=120.0),
         "push_first": Parameter(1.0, "ratio", _COMMON["push_first"].doc, -1.0, 2.0),
         "height_ratio": Parameter(0.55, "size", "visible height of the cloud / size: ~0.3 humilis, ~0.6 "
                                                 "mediocris, ~1 congestus", 0.1, 4.0),
