@@ -276,6 +276,10 @@ def test_a_sequence_gets_one_picture_held_from_its_first_frame(tmp_path):
     again = render_frames(scene, range(3), out / "f_{frame}.exr", png=out / "f_{frame}.png", progress=False)
     assert again.skipped == [0, 2] and again.rendered == [1] and again.stops == report.stops
     assert (out / "f_1.png").read_bytes() == before
+    # the first frame asked for sets it, whatever its number
+    other = render_frames(scene, [2, 0], tmp_path / "b_{frame}.exr", png=tmp_path / "b_{frame}.png", progress=False)
+    assert other.exposure_frame == 2 and other.stops == d.exposure_of(
+        images[2], illuminant=d.scene_illuminant(load_scene(scene, frame=2)))
 
 
 def test_sequence_display_settings_leave_the_exrs_bit_identical(tmp_path):
