@@ -28,12 +28,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CloudmetaError, InputError, OutputError, SceneError
-from .io import atomic_outputs, check_distinct, check_exposure, check_output_path, encode_outputs
+from .display import check_display, check_exposure_setting, check_white_balance, exposure_of
+from .io import atomic_outputs, check_distinct, check_output_path, encode_outputs, png_settings, read_exr
 from ..renderer import render
 from ..renderer.threads import progress_bar
 from .runtime import interruptible
 from ..scene import load_scene
 from ..scene.animation import load_animation
+from ..scene.vocabulary import AUTO_EXPOSURE
 
 #: a task that raises (not a dying worker: that is the scheduler's allowed-failures) is tried this many more times
 RETRIES = 2
@@ -70,10 +72,16 @@ class FrameJob:
 @dataclass
 class FramesReport:
     """What ``render_frames`` did: frames rendered (in the order they were written) and frames skipped
-    because their files already existed; ``outputs`` maps each frame to its (exr, png or None) paths."""
+    because their files already existed; ``outputs`` maps each frame to its (exr, png or None) paths.
+    ``png``: the PNGs' settings, (display, white balance, exposure as asked: stops or "auto") where there
+    are PNGs, else None; ``stops``: the exposure every PNG of the sequence got (for auto, measured on
+    ``exposure_frame``), None where no PNG was written or measured."""
     rendered: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
     outputs: dict = field(default_factory=dict)
+    png: tuple | None = None
+    stops: float | None = None
+    exposure_frame: int | None = None
 
 
 @dataclass(frozen=True)
@@ -187,9 +195,9 @@ def _frames_bar(total, enabled):
                         mininterval=0.1)
 
 
-def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, width=None, height=None, spp=None,
-                  render=None, tiles=1, overwrite=False, client=None, workers=None, scheduler=None,
-                  retries=RETRIES, progress=True) -> FramesReport:
+def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, display=None, white_balance=None,
+                  width=None, height=None, spp=None, render=None, tiles=1, overwrite=False, client=None,
+                  workers=None, scheduler=None, retries=RETRIES, progress=True) -> FramesReport:
     """Render ``frames`` of the scene file ``scene`` to one EXR each (and one PNG each with ``png``).
 
     ``frames``: an iterable of frame numbers; by default the scene's ``animation`` frames, or frame 0.
@@ -198,8 +206,14 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
     before the extension for several frames), and ``png`` then to the scene's output.png; an ``output``
     given with no ``png`` writes no PNG. ``output`` may instead be an Outputs (both paths and how
     errors name them; ``png`` must then be None). ``width``, ``height``, ``spp`` and ``render`` (a dict of render
-    settings such as {"quality": "draft"}) override the scene's; ``exposure`` the PNG's. ``tiles``: K bands
-    of rows or an (R, C) grid per frame. A frame whose files exist is skipped unless ``overwrite``.
+    settings such as {"quality": "draft"}) override the scene's. The PNGs are pictures as cm.write_png makes
+    them (docs/display.md): ``display`` (aces, raw), ``white_balance`` (scene, none, a CIE illuminant, an RGB)
+    and ``exposure`` (stops or auto) override the scene's output.display, output.white_balance and
+    output.exposure, and None takes the display's default. The whole sequence gets one picture: the white
+    balance ``scene`` is the light of its first frame (the first of ``frames``), and ``auto`` is measured on
+    that frame's image (rendered now, or read back from its EXR where a re-run skips it) and held for every
+    frame, so that the sequence does not flicker; a tiled frame is displayed once assembled. ``tiles``: K
+    bands of rows or an (R, C) grid per frame. A frame whose files exist is skipped unless ``overwrite``.
     ``client``: a dask.distributed Client; or ``workers=N`` (a local cluster, started and closed here) or
     ``scheduler`` (the address of a running one). Every frame's outputs are checked before any work (cloudmeta.api.io.check_output_path;
     the frames to render are loaded for that, so a bad frame fails before the first is rendered); each
@@ -231,7 +245,11 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
     frames = [int(f) for f in frames]
     render_overrides = tuple(sorted((render or {}).items()))
     if exposure is not None:
-        check_exposure(exposure)
+        check_exposure_setting(exposure)
+    if display is not None:
+        check_display(display)
+    if white_balance is not None:
+        check_white_balance(white_balance)
     first = load_frame(FrameJob(path, frames[0], width, height, spp, render_overrides))  # fail before any work
     labels = [spec.exr_label, spec.png_label]
     if output is None:
@@ -266,19 +284,54 @@ def render_frames(scene, frames=None, output=None, png=None, *, exposure=None, w
             del kept[f]
     windows = tile_windows(first.image.height, first.image.width, tiles)
     colourspace = first.render.colourspace
-    exposure = first.output.exposure if exposure is None else exposure
+    look = None  # the PNGs' (display, white balance, exposure, illuminant), checked before any work
+    if pngs:
+        look = png_settings(first.output.display if display is None else display,
+                            first.output.white_balance if white_balance is None else white_balance,
+                            first.output.exposure if exposure is None else exposure, first)
+        report.png = look[:3]
+        if look[2] != AUTO_EXPOSURE:
+            report.stops = float(look[2])
+    anchor = frames[0]  # the frame whose image sets an auto exposure for the whole sequence
+    held = {}  # frames back before the anchor, waiting for its exposure (a cluster returns them out of order)
+
+    def write_now(f, image):
+        # both files or neither: a frame is finished when all its files exist
+        with atomic_outputs([exrs[f]] + ([pngs[f]] if f in pngs else [])) as tmps:
+            if look is None:  # the EXR alone
+                encode_outputs(image, tmps, colourspace)
+            else:
+                encode_outputs(image, tmps, colourspace, report.stops, display=look[0], white_balance=look[1],
+                               illuminant=look[3])
+        report.rendered.append(f)
 
     def write(f, image):
         if not np.all(np.isfinite(image)):  # as for a single render (cloudmeta.cli)
             raise SceneError(path, None, f"frame {f}: the rendered image has values beyond the float32 range; "
                                          f"lower the lights' irradiance or intensity (README: Limits)")
-        # both files or neither: a frame is finished when all its files exist
-        with atomic_outputs([exrs[f]] + ([pngs[f]] if f in pngs else [])) as tmps:
-            encode_outputs(image, tmps, colourspace, exposure)
-        report.rendered.append(f)
+        if look is not None and report.stops is None:
+            if f != anchor:
+                held[f] = image
+                return
+            _measure(image)
+        write_now(f, image)
+        for g in list(held):
+            write_now(g, held.pop(g))
+
+    def _measure(image):
+        report.stops = exposure_of(image, colourspace, look[0], look[1], look[3])
+        report.exposure_frame = anchor
 
     if not todo:
         return report
+    if report.stops is None and look is not None and anchor not in todo:
+        # a re-run that skips the anchor: its EXR holds the image that set the exposure
+        try:
+            image = read_exr(exrs[anchor])[0][..., :4]
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise OutputError(f"{labels[0]} {exrs[anchor]}: cannot read frame {anchor}, whose image sets the "
+                              f"sequence's auto exposure ({exc}); --overwrite renders it again") from None
+        _measure(image)
     bar = _frames_bar(len(todo), progress)
     try:
         if client is None and workers is None and scheduler is None:

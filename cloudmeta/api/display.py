@@ -213,6 +213,16 @@ def auto_exposure(rgb709, alpha=None, display="aces"):
     return float(np.clip(np.log2(AUTO_LEVEL[display] / level), -MAX_EXPOSURE, MAX_EXPOSURE))
 
 
+def exposure_of(image, colourspace=DEFAULT_COLOURSPACE, display="aces", white_balance=None, illuminant=None):
+    """The stops ``auto`` gives ``image`` (H x W x 3|4 linear, of ``colourspace``) after its white balance:
+    what display_image applies with exposure auto. A sequence measures its first frame so and holds the
+    stops for every frame (cloudmeta.api.cluster.render_frames): an exposure per frame would flicker."""
+    display, white_balance, _ = resolve(display, white_balance, AUTO_EXPOSURE)
+    arr = np.asarray(image, np.float64)
+    rgb709 = arr[..., :3] @ balance_matrix(white_balance, colourspace, illuminant).T
+    return auto_exposure(rgb709, arr[..., 3] if arr.shape[-1] == 4 else None, display)
+
+
 # --- the display transform ---------------------------------------------------------------------------------
 
 @functools.lru_cache(maxsize=1)

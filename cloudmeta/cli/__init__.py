@@ -201,10 +201,12 @@ def _level_words(level):
 def _frames(args):
     """``cloudmeta render`` for a sequence, tiles or a cluster (cloudmeta.api.cluster.render_frames)."""
     from ..api.cluster import Outputs, parse_tiles, render_frames
-    from ..api.io import check_exposure
+    from ..api.display import check_exposure_setting, check_white_balance, describe
     from ..scene.animation import parse_frames
     if args.exposure is not None:
-        check_exposure(args.exposure, "--exposure")
+        check_exposure_setting(args.exposure, "--exposure")
+    if args.white_balance is not None:
+        check_white_balance(args.white_balance, "--white-balance")
     frames = parse_frames(args.frames) if args.frames is not None else None
     tiles = parse_tiles(args.tiles) if args.tiles is not None else 1
     render = {k: v for k, v in (("quality", args.quality), ("shadows", args.shadows),
@@ -219,14 +221,19 @@ def _frames(args):
     compile_notice("workers on this machine share the cache")
     start = time.perf_counter()
     outputs = Outputs(exr=args.output, png=args.png, exr_label="-o", png_label="--png")
-    report = render_frames(args.scene, frames, outputs, exposure=args.exposure, width=args.width, height=args.height,
-                           spp=args.spp, render=render, tiles=tiles, overwrite=args.overwrite, workers=args.workers,
+    report = render_frames(args.scene, frames, outputs, exposure=args.exposure, display=args.display,
+                           white_balance=args.white_balance, width=args.width, height=args.height, spp=args.spp,
+                           render=render, tiles=tiles, overwrite=args.overwrite, workers=args.workers,
                            scheduler=args.scheduler, progress=not args.quiet)
     took = time.perf_counter() - start
     if report.skipped:
         print(f"cloudmeta: skipped {len(report.skipped)} finished frames (their files exist; --overwrite renders "
               f"them again)")
     print(f"cloudmeta: rendered {len(report.rendered)} frames in {took:.2f} s")
+    if report.png is not None and report.stops is not None:
+        held = (f" (measured on frame {report.exposure_frame}, held for every frame)"
+                if report.exposure_frame is not None else "")
+        _verbose(args)(f"PNG: {describe(*report.png, report.stops)}{held} (docs/display.md)")
     for f in sorted(report.rendered):
         print(f"cloudmeta: wrote {' and '.join(p for p in report.outputs[f] if p)}")
     return 0

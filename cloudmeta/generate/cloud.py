@@ -118,6 +118,8 @@ def generate(kind, balls=3000, seed=1, size=10.0, **params):
         else:
             ratio_here = ratio
         push = p["push"] if not last else 0.5 * p["push"]
+        if k == 1 and not last and p["push_first"] is not None:
+            push = p["push_first"]
         plan.append((n_here, round(ratio_here, 4)))
         if last and p["fray"] > 0 and n_here >= 4:
             n_fray = int(round(p["fray"] * n_here))

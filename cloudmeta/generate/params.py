@@ -40,6 +40,8 @@ _COMMON = {
                          0.5, 4.0),
     "push": Parameter(1.7, "ratio", "how far each puff but the last level's stands out of the surface it "
                                     "sits on, in its own visible radii (0: centred on the surface)", -1.0, 2.0),
+    "push_first": Parameter(None, "ratio", "how far the first level of puffs (the largest, on the body) stands "
+                                          "out of it, in their own visible radii (default: push)", -1.0, 2.0),
     "size_spread": Parameter(4.0, "ratio", "largest / smallest puff of a level: their sizes follow a power law "
                                            "over this range (1: all alike, +-15 %)", 1.0, 30.0),
     "size_power": Parameter(2.0, "exponent", "a of the puff sizes' power law p(x) ~ x^-a within a level (larger: "
@@ -94,6 +96,13 @@ _COLUMN = _defaults(push=1.2, spacing=2.6, fray=0.35, erosion=0.04)
 PARAMETERS = {
     "cumulus": {
         **_COMMON,
+        # the largest puffs sit on the body, the finer ones stand out of them: rounded masses with a rough,
+        # frayed outline (a perimeter dimension of ~1.3), where puffs all standing out as far read as a foam;
+        # a narrower spread of sizes within a level keeps the small puffs' detail from being swallowed; the
+        # core is denser with the first puffs on the body, so the same density takes a higher optical depth
+        # along its most opaque ray (at 60 the cloud would be half as dense as before, misty)
+        **_defaults(push=2.0, size_spread=2.0, optical_depth=120.0),
+        "push_first": Parameter(1.0, "ratio", _COMMON["push_first"].doc, -1.0, 2.0),
         "height_ratio": Parameter(0.55, "size", "visible height of the cloud / size: ~0.3 humilis, ~0.6 "
                                                 "mediocris, ~1 congestus", 0.1, 4.0),
         "squareness": Parameter(2.4, "exponent", _SQUARENESS, 1.5, 8.0),

@@ -62,6 +62,7 @@ _AZIMUTHS = 72
 #: Gauss-Legendre nodes in elevation of the sky's irradiance on the ground
 _IRRADIANCE_NODES = 96
 _STORE_KEY = "atmosphere:ASTM G-173 ETR, Rayleigh Bodhaine 1999 sea level, " + _CMFS + ", 360-780 nm 1 nm"
+_BASIS_KEY = "atmosphere:Mallett-Yuksel 2019 sRGB basis, linear, 360-780 nm 1 nm"
 
 
 def turbidity_to_aerosol_depth(turbidity):
@@ -120,6 +121,44 @@ def spectra():
     for a in (wl, sun, rayleigh, weights):
         a.setflags(write=False)
     return wl, sun, rayleigh, weights
+
+
+def _compute_basis():
+    colour = _colour()
+    from colour.algebra import LinearInterpolator
+    from colour.recovery import MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019
+    # linear between colour-science's 5 nm samples and constant beyond 380 nm: each stays in [0, 1] and
+    # the three sum to 1 (within 1e-5), so a grey stays flat
+    basis = MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019.copy().align(colour.SPECTRAL_SHAPE_DEFAULT,
+                                                                 interpolator=LinearInterpolator)
+    return np.asarray(basis.values, np.float64).T.tolist()
+
+
+def ground_albedo_of(value):
+    """A ground albedo as the sky functions take it: a float for a grey ground, a tuple of 3 floats for a
+    coloured one (linear BT.709 reflectances, each in [0, 1]); one equal in all three is the grey.
+    ValueError otherwise."""
+    if np.ndim(value) == 0:
+        albedo = float(value)
+        if not 0.0 <= albedo <= 1.0:
+            raise ValueError(f"ground_albedo: expected an albedo in [0, 1], got {value!r}")
+        return albedo
+    rgb = tuple(float(v) for v in np.asarray(value, np.float64).ravel())
+    if np.shape(value) != (3,) or not all(0.0 <= v <= 1.0 for v in rgb):
+        raise ValueError(f"ground_albedo: expected an albedo in [0, 1] or [r, g, b] each in [0, 1], got {value!r}")
+    return rgb[0] if rgb[0] == rgb[1] == rgb[2] else rgb
+
+
+def ground_reflectance(albedo):
+    """The ground's reflectance on the wavelengths of ``spectra()``: a grey albedo (a number) as it is, flat;
+    an RGB albedo (linear BT.709, whatever the working colourspace) as the spectrum of Mallett & Yuksel
+    (2019, colour-science's ``RGB_to_sd_Mallett2019``): r, g and b weights of three smooth basis spectra that
+    sum to 1, so the spectrum stays in [0, 1] and its colour under D65 is the RGB's."""
+    albedo = ground_albedo_of(albedo)
+    if isinstance(albedo, float):
+        return albedo
+    basis = np.array(_stored(_BASIS_KEY, _compute_basis), np.float64)
+    return np.asarray(albedo) @ basis
 
 
 def _check(elevation_deg, aerosol_depth):
@@ -244,19 +283,18 @@ def _ground_spectra(view_deg, sun_deg, aerosol_depth, ground):
 def sky_xyz(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, ground_albedo=DEFAULT_GROUND_ALBEDO):
     """(181, 3) XYZ of the sky's radiance at view elevations -90 .. 90 degrees (row i: elevation i - 90),
     per unit extraterrestrial luminance of the sun. Above the horizon, ``_sky_spectra``; below it a
-    Lambertian ground of albedo ``ground_albedo`` lit by the sun (sin h E0 exp(-m tau)) and the sky,
+    Lambertian ground of albedo ``ground_albedo`` (grey, or [r, g, b]: ``ground_reflectance``) lit by the sun (sin h E0 exp(-m tau)) and the sky,
     L = albedo / pi (E_sun + E_sky), E_sky = integral over the upper hemisphere of L cos(zenith), seen through
     the air below the observer (``_ground_spectra``): towards the horizon it fades into the haze."""
     s, aerosol_depth = float(sun_elevation_deg), float(aerosol_depth)
     _check(s, aerosol_depth)
-    if not 0.0 <= ground_albedo <= 1.0:
-        raise ValueError(f"ground_albedo: expected an albedo in [0, 1], got {ground_albedo!r}")
+    reflectance = ground_reflectance(ground_albedo)
     weights = spectra()[3]
     sky = _sky_spectra(np.arange(0.0, 91.0), s, aerosol_depth)
     nodes, node_weights = _gauss_elevations()
     e_sky = node_weights @ _sky_spectra(nodes, s, aerosol_depth)
     e_sun = np.sin(np.radians(s)) * sun_spectrum(s, aerosol_depth)
-    ground = ground_albedo / np.pi * (e_sun + e_sky)
+    ground = reflectance / np.pi * (e_sun + e_sky)
     out = np.empty((SKY_ROWS, 3))
     out[:90] = _ground_spectra(np.arange(-90.0, 0.0), s, aerosol_depth, ground) @ weights
     out[90:] = sky @ weights
@@ -275,8 +313,9 @@ def sky_table(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, colourspac
     """(181, 3) read-only linear RGB in ``colourspace`` of the sky's radiance at view elevations -90 .. 90
     degrees, 1 degree apart (row i: elevation i - 90; z is up), per unit extraterrestrial luminance of a
     sun at ``sun_elevation_deg``: the sun's ``irradiance`` multiplies it. The sky is taken as the same at
-    every azimuth (averaged over it). Negative components (out of gamut) are clipped to 0."""
-    return _sky_table(float(sun_elevation_deg), float(aerosol_depth), colourspace, float(ground_albedo))
+    every azimuth (averaged over it). Negative components (out of gamut) are clipped to 0. ``ground_albedo``:
+    a number (grey) or [r, g, b] (``ground_reflectance``)."""
+    return _sky_table(float(sun_elevation_deg), float(aerosol_depth), colourspace, ground_albedo_of(ground_albedo))
 
 
 def sky_mean(table):

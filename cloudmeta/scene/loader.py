@@ -19,10 +19,10 @@ from . import limits as lim
 from .animation import naming_frame, resolve_frame
 from .balls import read_blob
 from .colour import DEFAULT_COLOURSPACE, _is_illuminant as is_illuminant, colourspace_name
-from .document import Context, Node, describe, fmt_numbers, frozen_array, read_yaml
+from .document import Context, Node, describe, fmt_numbers, frozen_array, is_finite_number, read_yaml
 from .feasibility import check_domain
 from .model import Camera, Density, ImageSettings, Medium, OutputSettings, Phase, RenderSettings, Scene, Surface
-from .atmosphere import DEFAULT_GROUND_ALBEDO, sky_mean
+from .atmosphere import DEFAULT_GROUND_ALBEDO, ground_albedo_of, sky_mean
 from .lights import SUN_KEYS, SunLight, read_light, read_sun, unit
 from .vocabulary import (APPROXIMATE_METHODS, AUTO_EXPOSURE, DENSITY_MODES, DISPLAYS, GRID_DEPOSITS, OCTAVES,
                          PHASE_PARAMS, QUALITIES, SCATTERING_MODES, SHADOW_MODES, WHITE_BALANCE_WORDS, ShadowMode)
@@ -207,8 +207,8 @@ def _output(top):
 
 
 _COLOUR_FORMS = "a colour ([r, g, b], {temperature: K} or {illuminant: NAME})"
-_SKY_FORMS = ("sky (the sky of the scene's one sun light) or {sky: {elevation, azimuth, turbidity or aerosol_depth, "
-              "irradiance, ground_albedo}}")
+_SKY_FORMS = ("sky (the sky of the scene's one sun light), {sky: {ground_albedo}} (that sky over another ground) or "
+              "{sky: {elevation, azimuth, turbidity or aerosol_depth, irradiance, ground_albedo}}")
 
 
 def _is_sky(raw):
@@ -216,15 +216,29 @@ def _is_sky(raw):
     return raw == "sky" or (isinstance(raw, dict) and "sky" in raw)
 
 
-def _sky_of_sun(top, key, lights, cs):
-    """The sky of the scene's one ``type: sun`` light; an error naming ``key`` if it has none or several."""
+def _sky_of_sun(top, key, lights, cs, ground_albedo=DEFAULT_GROUND_ALBEDO):
+    """The sky of the scene's one ``type: sun`` light over a ground of ``ground_albedo``; an error naming
+    ``key`` if it has none or several."""
     suns = [light.sun for light in lights if isinstance(light, SunLight)]
     if len(suns) != 1:
         found = "none" if not suns else f"{len(suns)}"
         top.fail(key, f"sky is the sky of the scene's one light of type: sun, found {found}; add one "
                       f"(lights: [{{type: sun, elevation: DEGREES}}]) or give the sky itself: "
                       f"background: {{sky: {{elevation: DEGREES, ...}}}}")
-    return suns[0].sky(cs, DEFAULT_GROUND_ALBEDO)
+    return suns[0].sky(cs, ground_albedo)
+
+
+_GROUND_ALBEDO = "an albedo in [0, 1] (grey) or [r, g, b], each in [0, 1] (linear BT.709)"
+
+
+def _ground_albedo(s):
+    """``ground_albedo`` of the sky node ``s``: a number or [r, g, b] (atmosphere.ground_albedo_of)."""
+    raw = s.data.get("ground_albedo")
+    if isinstance(raw, list):
+        if not (len(raw) == 3 and all(is_finite_number(v) and 0 <= v <= 1 for v in raw)):
+            s.fail("ground_albedo", f"expected {_GROUND_ALBEDO}, got {describe(raw)}")
+        return ground_albedo_of([float(v) for v in raw])
+    return s.number("ground_albedo", DEFAULT_GROUND_ALBEDO, check=lambda v: 0 <= v <= 1, expect=_GROUND_ALBEDO)
 
 
 def _sky(top, cs, lights):
@@ -235,10 +249,12 @@ def _sky(top, cs, lights):
     else:
         n = top.node("background", ("sky",))
         s = n.node("sky", SUN_KEYS + ("ground_albedo",))
-        sun = read_sun(s)
-        albedo = s.number("ground_albedo", DEFAULT_GROUND_ALBEDO, check=lambda v: 0 <= v <= 1,
-                          expect="an albedo in [0, 1]")
-        sky, where = sun.sky(cs, albedo), s.key("irradiance")
+        albedo = _ground_albedo(s)
+        if set(s.data) == {"ground_albedo"}:  # the ground alone: the sky of the scene's one sun over it
+            sky, where = _sky_of_sun(top, "background", lights, cs, albedo), "background"
+        else:
+            sun = read_sun(s)
+            sky, where = sun.sky(cs, albedo), s.key("irradiance")
     if not np.max(sky) <= lim.MAX_RADIANCE:
         top.ctx.fail(where, f"expected the sky's radiance <= {lim.MAX_RADIANCE:g} (README: Limits), its largest is "
                             f"{np.max(sky):.3g}")

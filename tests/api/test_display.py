@@ -235,3 +235,109 @@ def test_missing_opencolorio_says_what_to_install(tmp_path, monkeypatch):
         assert (tmp_path / "b.png").exists() and not (tmp_path / "a.png").exists()
     finally:
         d.ocio_processor.cache_clear()
+
+
+# --- sequences and tiles -----------------------------------------------------------------------------------
+
+def _frames_scene(tmp_path):
+    from tests.scene.test_animation import ANIMATED, write_scene
+    return write_scene(tmp_path, ANIMATED)
+
+
+def _png(path):
+    return np.asarray(Image.open(path))
+
+
+def test_a_sequence_gets_one_picture_held_from_its_first_frame(tmp_path):
+    from cloudmeta.api.cluster import render_frames
+    from cloudmeta.api.io import read_exr
+    scene = _frames_scene(tmp_path)
+    out = tmp_path / "a"
+    out.mkdir()
+    report = render_frames(scene, range(3), out / "f_{frame}.exr", png=out / "f_{frame}.png", progress=False)
+    assert report.rendered == [0, 1, 2] and report.png == ("aces", "scene", "auto") and report.exposure_frame == 0
+    first = load_scene(scene, frame=0)
+    illuminant = d.scene_illuminant(first)  # the white balance of the whole sequence: its first frame's light
+    images = [read_exr(out / f"f_{f}.exr")[0] for f in range(3)]
+    assert report.stops == d.exposure_of(images[0], illuminant=illuminant)
+    for f in range(3):  # every frame: the managed picture at the held exposure and white balance
+        want, _ = d.display_image(images[f], display="aces", white_balance="scene", exposure=report.stops,
+                                  illuminant=illuminant)
+        np.testing.assert_array_equal(_png(out / f"f_{f}.png"), want)
+    # the light brightens over the sequence: an exposure chosen per frame would have changed (flicker)
+    assert abs(d.exposure_of(images[2], illuminant=illuminant) - report.stops) > 0.05
+    per_frame, _ = d.display_image(images[2], display="aces", white_balance="scene", exposure="auto",
+                                   illuminant=illuminant)
+    assert not np.array_equal(_png(out / "f_2.png"), per_frame)
+    # a re-run that skips the first frame reads its EXR back: the same exposure, the same bytes
+    before = (out / "f_1.png").read_bytes()
+    (out / "f_1.png").unlink()
+    (out / "f_1.exr").unlink()
+    again = render_frames(scene, range(3), out / "f_{frame}.exr", png=out / "f_{frame}.png", progress=False)
+    assert again.skipped == [0, 2] and again.rendered == [1] and again.stops == report.stops
+    assert (out / "f_1.png").read_bytes() == before
+    # the first frame asked for sets it, whatever its number
+    other = render_frames(scene, [2, 0], tmp_path / "b_{frame}.exr", png=tmp_path / "b_{frame}.png", progress=False)
+    assert other.exposure_frame == 2 and other.stops == d.exposure_of(
+        images[2], illuminant=d.scene_illuminant(load_scene(scene, frame=2)))
+
+
+def test_sequence_display_settings_leave_the_exrs_bit_identical(tmp_path):
+    from cloudmeta.api.cluster import render_frames
+    from cloudmeta.api.io import read_exr
+    from cloudmeta.renderer import render
+    scene = _frames_scene(tmp_path)
+    runs = {"aces": {}, "raw": dict(display="raw", exposure=1.5),
+            "d50": dict(white_balance="D50", exposure="auto"), "tiled": dict(tiles=(2, 2))}
+    for name, kw in runs.items():
+        (tmp_path / name).mkdir()
+        report = render_frames(scene, [0, 2], tmp_path / name / "f_{frame}.exr",
+                               png=tmp_path / name / "f_{frame}.png", progress=False, **kw)
+        assert report.rendered == [0, 2]
+    for f in (0, 2):
+        blobs = [(tmp_path / name / f"f_{f}.exr").read_bytes() for name in runs]
+        assert all(b == blobs[0] for b in blobs[1:])
+        # the single image's pixels, as cloudmeta.cli writes them
+        assert np.array_equal(read_exr(tmp_path / "aces" / f"f_{f}.exr")[0],
+                              render(load_scene(scene, frame=f), progress=False))
+        # a tiled frame is displayed once assembled: one exposure for the frame, the same picture
+        assert (tmp_path / "tiled" / f"f_{f}.png").read_bytes() == (tmp_path / "aces" / f"f_{f}.png").read_bytes()
+        linear = read_exr(tmp_path / "raw" / f"f_{f}.exr")[0].astype(np.float64)
+        np.testing.assert_array_equal(_png(tmp_path / "raw" / f"f_{f}.png"), encode_srgb(linear[..., :3], 1.5))
+    assert not np.array_equal(_png(tmp_path / "d50" / "f_0.png"), _png(tmp_path / "aces" / "f_0.png"))
+
+
+def test_sequence_settings_come_from_the_scene_and_are_checked_before_work(tmp_path, monkeypatch, capsys):
+    from cloudmeta.api.cluster import render_frames
+    from cloudmeta.cli import main
+    from tests.scene.test_animation import ANIMATED, write_scene
+    raw = write_scene(tmp_path, ANIMATED + "output: {display: raw, exposure: -1}\n", "raw.yaml")
+    report = render_frames(raw, [0], tmp_path / "r.exr", png=tmp_path / "r.png", progress=False)
+    assert report.png == ("raw", "none", -1.0) and report.stops == -1.0 and report.exposure_frame is None
+    scene = _frames_scene(tmp_path)
+    for kw, label in ((dict(display="srgb"), "display:"), (dict(white_balance="D66"), "white_balance:"),
+                      (dict(exposure="bright"), "exposure:")):
+        with pytest.raises(InputError) as exc:
+            render_frames(scene, [0], tmp_path / "x_{frame}.exr", png=tmp_path / "x_{frame}.png", progress=False,
+                          **kw)
+        assert str(exc.value).startswith(label)
+    monkeypatch.setitem(sys.modules, "PyOpenColorIO", None)  # OpenColorIO missing: refused before rendering
+    d.ocio_processor.cache_clear()
+    try:
+        assert main(["render", str(scene), "--frames", "0:2", "-o", str(tmp_path / "c_{frame}.exr"), "--png",
+                     str(tmp_path / "c_{frame}.png"), "-q"]) == 2
+        err = capsys.readouterr().err
+        assert "pip install opencolorio" in err and err.count("\n") == 1
+        assert not list(tmp_path.glob("c_*"))
+        assert main(["render", str(scene), "--frames", "0:2", "-o", str(tmp_path / "c_{frame}.exr"), "--png",
+                     str(tmp_path / "c_{frame}.png"), "-q", "--display", "raw"]) == 0
+    finally:
+        monkeypatch.undo()
+        d.ocio_processor.cache_clear()
+    assert main(["render", str(scene), "--frames", "0:2", "-o", str(tmp_path / "v_{frame}.exr"), "--png",
+                 str(tmp_path / "v_{frame}.png"), "-q", "-v", "--white-balance", "D50"]) == 0
+    said = capsys.readouterr().out
+    assert "white balance D50, exposure auto" in said and "measured on frame 0, held for every frame" in said
+    assert main(["render", str(scene), "--frames", "0:2", "-o", str(tmp_path / "w_{frame}.exr"), "--png",
+                 str(tmp_path / "w_{frame}.png"), "-q", "--white-balance", "D66"]) == 2
+    assert "--white-balance:" in capsys.readouterr().err

@@ -155,7 +155,9 @@ def test_sizes_spread_and_the_base_fades():
         return hi / lo
     cloud = cm.generate("cumulus", balls=3000, seed=2)
     alike = cm.generate("cumulus", balls=3000, seed=2, size_spread=1.0, depth_power=100.0)
-    assert spread(cloud) > 1.3 * spread(alike)
+    wide = cm.generate("cumulus", balls=3000, seed=2, size_spread=8.0)
+    assert spread(wide) > 1.3 * spread(alike)
+    assert spread(cloud) > spread(alike)  # the cumulus's default spread (2) is narrower, still a spread
     fade = cloud.balls[cloud.levels == FADE]
     assert len(fade) == 1 and fade[0, 9] == -THRESHOLD and fade[0, 2] == 0.0
     assert fade[0, 5] == pytest.approx(0.15 * cloud.extent[1][2], rel=0.3)  # 0.15 of the height, roughly

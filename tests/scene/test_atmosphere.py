@@ -196,6 +196,33 @@ def test_08b_the_ground_fades_into_the_haze_towards_the_horizon(monkeypatch):
     assert atm.ground_air_mass(-90.0) == pytest.approx(atm.GROUND_AIR_PATH)
 
 
+def test_08c_a_coloured_ground(monkeypatch):
+    """An RGB albedo is a reflectance spectrum (Mallett & Yuksel 2019's basis) whose colour under D65 is that
+    RGB; a grey one is the number's flat spectrum, bit for bit; the sky above is unchanged."""
+    import colour
+    green = (0.08, 0.16, 0.04)
+    rho = atm.ground_reflectance(green)
+    assert rho.shape == atm.spectra()[0].shape and np.all((rho >= 0) & (rho <= 1))
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(colour.SPECTRAL_SHAPE_DEFAULT).values
+    weights = atm.spectra()[3]
+    xyz = (rho * d65) @ weights / (d65 @ weights)[1]
+    rgb = np.asarray(colour.RGB_COLOURSPACES[DEFAULT_COLOURSPACE].matrix_XYZ_to_RGB) @ xyz
+    np.testing.assert_allclose(rgb, green, rtol=0.01)
+    assert atm.ground_reflectance([0.3, 0.3, 0.3]) == 0.3
+    np.testing.assert_array_equal(atm.sky_table(35.0, 0.1, ground_albedo=[0.1, 0.1, 0.1]), atm.sky_table(35.0, 0.1))
+    coloured = atm.sky_table(35.0, 0.1, ground_albedo=green)
+    np.testing.assert_array_equal(coloured[90:], atm.sky_table(35.0, 0.1)[90:])
+    monkeypatch.setattr(atm, "GROUND_AIR_PATH", 0.0)  # the bare ground: about the albedo times a white one's
+    bare = atm.sky_xyz(35.0, 0.1, green)
+    white = atm.sky_xyz(35.0, 0.1, 1.0)
+    to_rgb = np.asarray(colour.RGB_COLOURSPACES[DEFAULT_COLOURSPACE].matrix_XYZ_to_RGB)
+    np.testing.assert_allclose(to_rgb @ bare[0] / (to_rgb @ white[0]), green, rtol=0.08)
+    assert np.argmax(to_rgb @ bare[0]) == 1  # green
+    for bad in ([0.1, 0.2], [0.1, 1.2, 0.0], -0.1, [[0.1, 0.1, 0.1]]):
+        with pytest.raises(ValueError, match="ground_albedo"):
+            atm.ground_albedo_of(bad)
+
+
 def test_09_sky_mean_weights_by_solid_angle():
     np.testing.assert_allclose(atm.sky_mean(np.full((181, 3), 0.7)), 0.7, rtol=1e-12)
     half = np.zeros((181, 3))
@@ -308,7 +335,25 @@ def test_14_explicit_sky_without_a_sun(tmp_path):
     assert s.lights == ()
 
 
+def test_14b_a_coloured_ground_in_the_scene(tmp_path):
+    brown = [0.2, 0.12, 0.06]
+    s = load(tmp_path, background={"sky": {"ground_albedo": brown}})  # the sun's sky over that ground
+    np.testing.assert_allclose(s.sky, 16.0 * atm.sky_table(30.0, atm.DEFAULT_AEROSOL_DEPTH, ground_albedo=brown),
+                               rtol=1e-15)
+    assert s.sky[0, 0] > s.sky[0, 1] > s.sky[0, 2]  # brown, looking down
+    np.testing.assert_allclose(s.background, atm.sky_mean(s.sky), rtol=1e-15)
+    s = load(tmp_path, background={"sky": {"elevation": 20, "ground_albedo": [0.05, 0.1, 0.03]}}, lights=None)
+    np.testing.assert_allclose(s.sky, 16.0 * atm.sky_table(20.0, atm.DEFAULT_AEROSOL_DEPTH,
+                                                           ground_albedo=(0.05, 0.1, 0.03)), rtol=1e-15)
+    s = load(tmp_path, background={"sky": {"ground_albedo": 0.1}})
+    np.testing.assert_array_equal(s.sky, load(tmp_path, background="sky").sky)
+
+
 @pytest.mark.parametrize("changes,where,fragment", [
+    (dict(background={"sky": {"ground_albedo": [0.1, 1.5, 0.1]}}), "background.sky.ground_albedo", "[r, g, b]"),
+    (dict(background={"sky": {"ground_albedo": [0.1, 0.1]}}), "background.sky.ground_albedo", "[r, g, b]"),
+    (dict(background={"sky": {"ground_albedo": "green"}}), "background.sky.ground_albedo", "[r, g, b]"),
+    (dict(background={"sky": {"ground_albedo": 0.2}}, lights=None), "background", "found none"),
     (dict(background="sky", lights=None), "background", "found none"),
     (dict(background="sky", lights=[{"type": "sun", "elevation": 30}, {"type": "sun", "elevation": 40}]),
      "background", "found 2"),

@@ -71,10 +71,15 @@ def test_frames_on_the_cluster_are_bit_identical_to_local(scene, local, client, 
     report = render_frames(scene, range(3), tmp_path / "f_{frame:04d}.exr", png=tmp_path / "f_{frame:04d}.png",
                            client=client, progress=False)
     assert sorted(report.rendered) == [0, 1, 2] and report.skipped == []
+    here = tmp_path / "here"
+    here.mkdir()
+    mine = render_frames(scene, range(3), here / "f_{frame:04d}.exr", png=here / "f_{frame:04d}.png", progress=False)
+    assert mine.stops == report.stops and report.exposure_frame == 0
     for f in range(3):
         assert np.array_equal(read(tmp_path / f"f_{f:04d}.exr"), local[f])
-        assert (tmp_path / f"f_{f:04d}.png").stat().st_size > 0
-    assert len(os.listdir(tmp_path)) == 6  # no temporary file left
+        # the PNGs too: one exposure, from frame 0, whatever order the frames came back in
+        assert (tmp_path / f"f_{f:04d}.png").read_bytes() == (here / f"f_{f:04d}.png").read_bytes()
+    assert len(os.listdir(tmp_path)) == 7  # no temporary file left (6 files and the folder "here")
 
 
 def test_a_2x2_tiled_frame_on_the_cluster_equals_the_whole_frame(scene, local, client, tmp_path):

@@ -94,3 +94,20 @@ def test_plain_model_matches_the_engine(mode):
     ref = P.optical_depth(med, o, d)
     got = cm.optical_depth(blob, o, d, density=mode, scale=1.7)
     np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12)
+
+
+def test_base_top_regions_and_a_tiny_run():
+    from validation.accuracy import base_top
+    image = np.zeros((40, 30, 4))
+    image[10:30, 5:25, 3] = 1.0                      # the cloud: rows 10-29
+    image[10:30, 5:25, :3] = 1.0
+    image[10, 5, :3] = 4.0                           # one bright pixel on top
+    image[27:30, 5:25, :3] = 0.25                    # a darker base: the lowest 15 % of 20 rows are 3
+    cloud, top, base, rows = base_top.regions(image)
+    assert rows == (27, 29) and base.sum() == 60 and cloud.sum() == 400
+    assert top[10, 5] and top.sum() >= 1
+    b, t, r = base_top.ratio(image, top, base)
+    assert b == pytest.approx(0.25) and r == pytest.approx(b / t) and r < 0.25
+    out = base_top.main(["--size", "24", "--ms-spp", "2"])
+    assert set(out) == {"approximate (octaves)", "multiple, 2 paths a pixel"}
+    assert all(0.0 < v < 2.0 for v in out.values())

@@ -18,11 +18,16 @@ D on the outlines that ``cloudmeta generate`` makes:
 - The area-perimeter relation over the connected pieces of every seed's mask (the cloud and the wisps
   set loose from it): P ~ A^(D/2), fitted on the pieces of at least 4 pixels (perimeter: the number of
   pixel edges between inside and outside).
+- Holes (a foam, not a cumulus): the pieces of the background that the mask encloses (4-connected pieces
+  of alpha < 1/2 that do not touch the image's border), counted where they have at least 4 pixels, and
+  their total area as a part of the cloud's; and the box-counting dimension again with the holes filled
+  (the outer outlines alone: how much of D the holes' edges make).
 - The spread of puff sizes: the visible radii of the positive balls that are not the body, as the
   cumulative count N(> r) ~ r^-b, fitted between the 5th and 95th percentiles of r, and the ratio of
   those percentiles (the range of sizes).
 
-Run: ``python -m validation.accuracy.cloud_shape`` (20 seeds, cumulus, 4,000 balls, 384 pixels);
+Run: ``python -m validation.accuracy.cloud_shape`` (seeds 1-20, cumulus, 4,000 balls, 384 pixels;
+``--first 11`` for seeds 11-30);
 ``--module PATH`` measures the ``generate`` of another copy of the generator (a file), e.g. an older one.
 """
 from __future__ import annotations
@@ -100,6 +105,20 @@ def pieces(mask):
     return np.stack([area, perim[1:]], 1)
 
 
+def holes(mask, least=4):
+    """(count, area / the mask's area, the mask with its holes filled): the pieces of the outside the mask
+    encloses (not touching the image's border), counted where they have at least ``least`` pixels; the area
+    is of them all."""
+    from scipy import ndimage
+    labels, n = ndimage.label(~mask)
+    border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)
+    inner = np.setdiff1d(np.arange(1, n + 1), border)
+    filled = mask | np.isin(labels, inner)
+    return (int(np.count_nonzero(sizes[inner] >= least)), float(sizes[inner].sum() / max(int(mask.sum()), 1)),
+            filled)
+
+
 def puff_sizes(cloud):
     """Visible radii (x size) of the positive balls that are not the body."""
     from cloudmeta.generate import iso_u
@@ -132,7 +151,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--kind", default="cumulus")
     ap.add_argument("--balls", type=int, default=4000)
-    ap.add_argument("--seeds", type=int, default=20, help="seeds 1 .. N")
+    ap.add_argument("--seeds", type=int, default=20, help="how many seeds: FIRST .. FIRST + N - 1")
+    ap.add_argument("--first", type=int, default=1, help="the first seed (default 1; 11 with --seeds 20 gives "
+                                                         "the held-out seeds 11-30)")
     ap.add_argument("--pixels", type=int, default=384)
     ap.add_argument("--alpha", type=float, default=0.5, help="the outline's alpha (default 1/2)")
     ap.add_argument("--module", default=None, help="a file with another copy of the generator's generate")
@@ -142,23 +163,28 @@ def main(argv=None):
     generate = load_generate(args.module)
     from cloudmeta.generate import parse_param
     params = dict(parse_param(t) for t in args.p)
-    dims, gen_cpu, all_pieces, exps, spans = [], [], [], [], []
-    for seed in range(1, args.seeds + 1):
+    all_counts, outer = [], []
+    dims, gen_cpu, all_pieces, exps, spans, gaps = [], [], [], [], [], []
+    seeds = range(args.first, args.first + args.seeds)
+    for seed in seeds:
         t0 = time.process_time()
         cloud = generate(args.kind, balls=args.balls, seed=seed, **params)
         gen_cpu.append(time.process_time() - t0)
         mask, _ = outline_mask(cloud, args.pixels, alpha=args.alpha)
         edge = edge_pixels(mask)
         counts = box_counts(edge)
+        all_counts.append(counts)
         dims.append(box_dimension(counts))
         all_pieces.append(pieces(mask))
+        gaps.append(holes(mask))
+        outer.append(box_dimension(box_counts(edge_pixels(gaps[-1][2]))))
         b, span = size_spread(puff_sizes(cloud))
         exps.append(b)
         spans.append(span)
         print(f"seed {seed:3d}: D_box {dims[-1]:.3f}  N(s) {' '.join(map(str, counts))}  "
-              f"pieces {len(all_pieces[-1])}  puff sizes N(>r)~r^-{b:.2f} over {span:.1f}x  "
+              f"pieces {len(all_pieces[-1])}  holes {gaps[-1][0]} ({gaps[-1][1]:.2%})  puff sizes N(>r)~r^-{b:.2f} over {span:.1f}x  "
               f"generate {gen_cpu[-1]:.2f} s CPU", flush=True)
-        if args.png and seed == 1:
+        if args.png and seed == seeds[0]:
             import matplotlib
             matplotlib.use("Agg")
             import matplotlib.pyplot as plt
@@ -175,13 +201,19 @@ def main(argv=None):
     else:
         ap_text = f"not fitted ({len(pcs)} pieces of >= 4 px: too few or too alike in area)"
     lo, hi = TARGET
-    print(f"\n{args.kind}, {args.balls} balls, seeds 1-{args.seeds}, {args.pixels} x {args.pixels} px, "
+    print(f"\n{args.kind}, {args.balls} balls, seeds {seeds[0]}-{seeds[-1]}, {args.pixels} x {args.pixels} px, "
           f"outline of alpha >= {args.alpha:g} (exact optical depth along y, orthographic)")
     print(f"perimeter dimension, box counting over {BOXES[0]}-{BOXES[-1]} px "
           f"({BOXES[0] / (0.7 * args.pixels):.2%}-{BOXES[-1] / (0.7 * args.pixels):.1%} of the cloud's width): "
           f"mean {dims.mean():.3f}, range {dims.min():.3f}-{dims.max():.3f}; published {PUBLISHED} "
           f"(target {lo}-{hi}: {'met' if lo <= dims.mean() <= hi else 'NOT met'})")
     print(f"perimeter dimension, area-perimeter over the pieces: {ap_text}")
+    ratios = np.array([c[:-1] / c[1:] for c in all_counts]).mean(axis=0)
+    print(f"box counts N(s) / N(2s), mean over the seeds, s = {', '.join(map(str, BOXES[:-1]))}: "
+          f"{', '.join(f'{r:.2f}' for r in ratios)} (a dimension D gives 2^D; 2^{PUBLISHED} = {2 ** PUBLISHED:.2f})")
+    print(f"holes through the cloud (enclosed background, >= 4 px): {np.mean([g[0] for g in gaps]):.1f} a seed "
+          f"(most {max(g[0] for g in gaps)}), {np.mean([g[1] for g in gaps]):.2%} of the cloud's area; box counting "
+          f"with the holes filled: mean {np.mean(outer):.3f}, range {min(outer):.3f}-{max(outer):.3f}")
     print(f"puff sizes (visible radius / size, levels >= 1): N(>r) ~ r^-b, b mean {np.mean(exps):.2f}, "
           f"p95/p5 {np.mean(spans):.1f}x (range {min(spans):.1f}-{max(spans):.1f})")
     print(f"generate: {np.median(gen_cpu):.2f} s CPU median per cloud")
