@@ -50,6 +50,33 @@ def test_weights_non_negative_and_deterministic(cloud):
     assert ((a.centers >= lo) & (a.centers <= hi)).all()
 
 
+def test_fit_is_the_same_on_one_thread_as_on_several(cloud):
+    import numba
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = fit_arrays(*cloud, balls=150, progress=False)
+    finally:
+        numba.set_num_threads(threads)
+    many = fit_arrays(*cloud, balls=150, progress=False)
+    assert np.array_equal(one.centers, many.centers) and np.array_equal(one.weights, many.weights)
+
+
+def test_solver_residual_matches_an_independent_least_squares(cloud):
+    """The fitted weights are a non-negative least-squares solution: on the balls it kept, scipy's nnls on
+    the same kernel columns leaves no smaller residual than 1 % below the fit's."""
+    from scipy.optimize import nnls
+    from cloudmeta.fit.fit import _Problem
+    d, lo, hi = cloud
+    r = fit_arrays(d, lo, hi, balls=60, progress=False)
+    P = _Problem(d, lo, hi)
+    A = np.concatenate([P.columns(c[None], R).toarray() for c, R in zip(r.centers, r.radii)], axis=1)
+    fit_res = np.linalg.norm(A @ r.weights - P.yflat)
+    best = nnls(A, P.yflat, maxiter=5000)[1]
+    assert fit_res == pytest.approx(r.density_error * P.ynorm, rel=1e-6)
+    assert best <= fit_res <= 1.01 * best
+
+
 def test_error_falls_with_more_balls(cloud):
     d, lo, hi = cloud
     errors = []
