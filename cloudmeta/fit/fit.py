@@ -34,6 +34,7 @@ from ..kernels import sparse
 RADIUS_FACTORS = (1.4, 1.6, 1.9)   #: candidate radii of the coarse lattice, in lattice steps
 FIRST_SHARE = 1 / 3               #: share of the ball budget that the first lattice may take
 STALL = 2e-4                      #: the solver stops once ten iterations gain less than this share
+TRIAL_STEPS = 16                  #: the radius trial's box: at most this many lattice steps a side
 POWER = 4                         #: power-iteration products for the solver's step
 TRANSPOSE_BLOCKS = 64              #: row ranges of the transpose (kernels.sparse.transpose)
 BLOCKS = 16                       #: blocks of rows of the solver's products (kernels.sparse.gradient)
@@ -238,11 +239,13 @@ def _quasi_interpolant(A, y):
 
 def _radius_factor(P, centers, step, iterations):
     """The radius of the first lattice, in lattice steps: of RADIUS_FACTORS, the one whose short solve
-    leaves the least residual, tried on the middle eighth of the box where the grid is large (the lattice
-    is the same there; the time an eighth)."""
+    leaves the least residual, tried on the middle of the box where the grid is large: its middle eighth,
+    or TRIAL_STEPS lattice steps a side where that is less (the lattice is the same there; a few thousand
+    balls decide as well as all)."""
     sub, c = P, centers
     if (P.shape >= 32).all():
-        lo_i, hi_i = P.shape // 4, P.shape - P.shape // 4
+        half = np.minimum(P.shape // 4, np.ceil(0.5 * TRIAL_STEPS * step / P.h).astype(np.int64))
+        lo_i, hi_i = P.shape // 2 - half, P.shape // 2 + half
         lower, upper = P.lower + lo_i * P.h, P.lower + hi_i * P.h
         inner = ((centers > lower) & (centers < upper)).all(axis=1)
         y = P.y[lo_i[0]:hi_i[0], lo_i[1]:hi_i[1], lo_i[2]:hi_i[2]]
@@ -288,7 +291,7 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
     factor = _radius_factor(P, centers, step, iterations // 3)
     radii = np.full(len(centers), factor * step)
     A = P.columns(centers, factor * step)
-    w, its = _fista(A, P.yflat, _quasi_interpolant(A, P.yflat), iterations)
+    w, its = _fista(A, P.yflat, _quasi_interpolant(A, P.yflat), iterations // 2)
 
     def prune(centers, radii, w, A):
         keep = w > 0
