@@ -6,15 +6,18 @@ largest weight, the least the loader accepts, so that F < T only where F is with
 
 Method:
 1. Placement: a lattice over the grid's occupied blocks, spaced so that it holds a third of the ball budget;
-   each ball's radius is 1.6 lattice steps (compact support: the matrix of kernel values at the voxel
+   its radius 1.4 to 1.9 lattice steps (4.; compact support: the matrix of kernel values at the voxel
    centres, one column a ball, is sparse).
 2. Weights: min ||A q - y||^2 over q >= 0, on every voxel that a ball reaches (the occupied voxels and their
    empty surroundings: without them the weights oscillate). Accelerated projected gradient (FISTA with
-   adaptive restart) on columns scaled to unit norm, warm-started between rounds.
-3. Refinement (Muraki's splitting, on lattices): each round scores the unused points of the next finer
-   lattices (spacing halved, radius with it) by the decrease of the squared residual each would give alone,
-   (a_j . r)_+^2 / |a_j|^2, adds the best, solves again and drops balls whose weight fell to 0; until the
-   budget of balls or the target error is reached.
+   adaptive restart) on columns scaled to unit norm, warm-started between rounds; its products on every
+   core (kernels.sparse), the same bits on any number of threads.
+3. Refinement (Muraki's splitting, on lattices): each round scores the unused blocks of the next finer
+   lattices (spacing halved) by the residual a constant over the block would remove, takes twice as many
+   as it adds, tries each at a few radii (RADIUS_CHOICES times its level's radius) and keeps the best by
+   the decrease of the squared residual that ball alone would give, (a_j . r)_+^2 / |a_j|^2; adds the best
+   of those, solves again and drops balls whose weight fell to 0; until the budget of balls or the target
+   error is reached.
 4. Radii: the lattice's radius factor is chosen from a few values by the coarse lattice's residual.
 Deterministic: no random numbers; ties are broken by index.
 """
@@ -34,6 +37,10 @@ from ..kernels import sparse
 RADIUS_FACTORS = (1.4, 1.6, 1.9)   #: candidate radii of the coarse lattice, in lattice steps
 FIRST_SHARE = 1 / 3               #: share of the ball budget that the first lattice may take
 STALL = 2e-4                      #: the solver stops once ten iterations gain less than this share
+#: a refinement ball's radius: its level's radius times one of these. Only wider: narrower balls fitted the
+#: voxel centres better and the optical depth worse (few centres hold their shape)
+RADIUS_CHOICES = (1.0, 1.4, 2.0)
+CANDIDATES = 2                    #: blocks whose radii are scored, per ball added
 TRIAL_STEPS = 16                  #: the radius trial's box: at most this many lattice steps a side
 POWER = 4                         #: power-iteration products for the solver's step
 TRANSPOSE_BLOCKS = 64              #: row ranges of the transpose (kernels.sparse.transpose)
@@ -261,6 +268,32 @@ def _radius_factor(P, centers, step, iterations):
     return best[1]
 
 
+def _choose_radii(P, levels, order, which, local, r, factor, add):
+    """Of the candidate blocks ``order`` (indices into which/local), the ``add`` best, each at the best of
+    RADIUS_CHOICES times its level's radius: scored by the decrease of the squared residual that ball alone
+    would give, (a_j . r)_+^2 / |a_j|^2. Returns (the chosen entries of order, their radius multipliers)."""
+    cc = np.empty((len(order), 3))
+    cr = np.empty(len(order))
+    for li in range(min(2, len(levels))):
+        sel = which[order] == li
+        s_l, counts, key, unused, st = levels[li]
+        bi = np.stack(np.unravel_index(unused[local[order[sel]]], tuple(counts)), axis=1)
+        cc[sel] = P.lower + (bi + 0.5) * st
+        cr[sel] = factor * float(st.max())
+    best, best_m = np.zeros(len(order)), np.ones(len(order))
+    for m in RADIUS_CHOICES:
+        C = P.columns(cc, cr * m)
+        dots = C.tdot(r)
+        norms = sparse.scale_columns(C.indptr, C.data, np.empty_like(C.data))
+        score = np.where(dots > 0, dots ** 2 / norms ** 2, 0.0)
+
+        better = score > best * (1 + 1e-12)
+        best[better], best_m[better] = score[better], m
+    top = np.lexsort((np.arange(len(order)), -best))[:add]
+    top = top[best[top] > 0]
+    return order[top], best_m[top]
+
+
 def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200, progress=None,
                error_check=None, max_rounds=40, growth=0.5):
     """Fit balls to ``density`` (float (nx, ny, nz), >= 0) on the box [lower, upper]; see ``fit_volume``.
@@ -330,19 +363,25 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
         gain = np.concatenate(gains)
         which = np.concatenate(picks)
         local = np.concatenate([np.arange(len(g)) for g in gains])
-        order = np.lexsort((local, which, -gain))[:add]
+        multi = len(RADIUS_CHOICES) > 1
+        order = np.lexsort((local, which, -gain))[:CANDIDATES * add if multi else add]
         order = order[gain[order] > 0]
         if len(order) == 0:
             break
+        mult = np.ones(len(order))
+        if multi:
+            order, mult = _choose_radii(P, levels, order, which, local, r, factor, add)
         new_c, new_r = [], []
         for li in range(min(2, len(levels))):
-            chosen = np.sort(local[order[which[order] == li]])
-            if len(chosen) == 0:
+            at = np.flatnonzero(which[order] == li)
+            if len(at) == 0:
                 continue
+            sort = np.argsort(local[order[at]], kind="stable")
+            chosen, m_l = local[order[at]][sort], mult[at][sort]
             s_l, counts, key, unused, st = levels[li]
             bi = np.stack(np.unravel_index(unused[chosen], tuple(counts)), axis=1)
             new_c.append(P.lower + (bi + 0.5) * st)
-            new_r.append(np.full(len(chosen), factor * float(st.max())))
+            new_r.append(factor * float(st.max()) * m_l)
             levels[li][3] = np.delete(unused, chosen)
         levels = [lv for lv in levels if len(lv[3])]
         new_c, new_r = np.concatenate(new_c), np.concatenate(new_r)
