@@ -161,8 +161,13 @@ class _Problem:
     def lattice(self, spacing):
         """(centres, block keys, largest step) of the lattice of ``spacing`` at the middle of each block of
         voxels that holds density."""
-        counts, key, step = self.blocks(spacing)
-        keys = np.unique(key[self.yflat > 0])
+        counts = np.maximum(1, np.floor((self.upper - self.lower) / spacing + 1e-9).astype(np.int64))
+        step = (self.upper - self.lower) / counts
+        if not hasattr(self, "_occupied_index"):   # the occupied voxels alone: the search tries many spacings
+            self._occupied_index = np.nonzero(self.occupied)
+        b = [np.minimum(((i + 0.5) * self.h[a] // step[a]).astype(np.int64), counts[a] - 1)
+             for a, i in enumerate(self._occupied_index)]
+        keys = np.unique((b[0] * counts[1] + b[1]) * counts[2] + b[2])
         bi = np.stack(np.unravel_index(keys, tuple(counts)), axis=1)
         return self.lower + (bi + 0.5) * step, keys, float(step.max())
 
