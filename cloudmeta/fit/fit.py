@@ -410,6 +410,7 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
     if bar is not None:
         bar.close()
     w, its = _fista(A, P.yflat, w, iterations)   # a last, longer solve of the final set
+    rounds[-1]["last_solve_iterations"] = its
     centers, radii, w, A = prune(centers, radii, w, A)
     err = float(np.linalg.norm(A.dot(w) - P.yflat) / P.ynorm)
     return _result(centers, radii, w, P, err, rounds, start, cpu0, factor)
