@@ -34,9 +34,9 @@ import scipy.sparse as sp
 from ..errors import InputError
 from ..kernels import sparse
 
-#: candidate radii of the coarse lattice, in lattice steps. 1.9 fitted a little better (noise cloud, 128^3,
-#: 10^5 balls: optical depth 0.18 % against 0.22 %) but its matrix holds 1.7 times the values, and the time
-#: goes into products over them
+#: candidate radii of the coarse lattice, in lattice steps. 1.9 fitted the noise cloud better at many balls
+#: (10^5 balls, 128^3: optical depth 0.18 % against 0.22 %), but its matrix holds 1.7 times the values, and
+#: the time goes into products over them (docs/fit.md)
 RADIUS_FACTORS = (1.4, 1.6)
 FIRST_SHARE = 1 / 3               #: share of the ball budget that the first lattice may take
 STALL = 2e-4                      #: the solver stops once ten iterations gain less than this share
