@@ -6,15 +6,18 @@ largest weight, the least the loader accepts, so that F < T only where F is with
 
 Method:
 1. Placement: a lattice over the grid's occupied blocks, spaced so that it holds a third of the ball budget;
-   each ball's radius is 1.6 lattice steps (compact support: the matrix of kernel values at the voxel
+   its radius 1.4 or 1.6 lattice steps (4.; compact support: the matrix of kernel values at the voxel
    centres, one column a ball, is sparse).
 2. Weights: min ||A q - y||^2 over q >= 0, on every voxel that a ball reaches (the occupied voxels and their
    empty surroundings: without them the weights oscillate). Accelerated projected gradient (FISTA with
-   adaptive restart) on columns scaled to unit norm, warm-started between rounds.
-3. Refinement (Muraki's splitting, on lattices): each round scores the unused points of the next finer
-   lattices (spacing halved, radius with it) by the decrease of the squared residual each would give alone,
-   (a_j . r)_+^2 / |a_j|^2, adds the best, solves again and drops balls whose weight fell to 0; until the
-   budget of balls or the target error is reached.
+   adaptive restart) on columns scaled to unit norm, warm-started between rounds; its products on every
+   core (kernels.sparse), the same bits on any number of threads.
+3. Refinement (Muraki's splitting, on lattices): each round scores the unused blocks of the next finer
+   lattices (spacing halved) by the residual a constant over the block would remove, takes twice as many
+   as it adds, tries each at a few radii (RADIUS_CHOICES times its level's radius) and keeps the best by
+   the decrease of the squared residual that ball alone would give, (a_j . r)_+^2 / |a_j|^2; adds the best
+   of those, solves again and drops balls whose weight fell to 0; until the budget of balls or the target
+   error is reached.
 4. Radii: the lattice's radius factor is chosen from a few values by the coarse lattice's residual.
 Deterministic: no random numbers; ties are broken by index.
 """
@@ -29,10 +32,22 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
+from ..kernels import sparse
 
-RADIUS_FACTORS = (1.4, 1.6, 1.9)   #: candidate radii of the coarse lattice, in lattice steps
+#: candidate radii of the coarse lattice, in lattice steps. 1.9 fitted the noise cloud better at many balls
+#: (10^5 balls, 128^3: optical depth 0.18 % against 0.22 %), but its matrix holds 1.7 times the values, and
+#: the time goes into products over them (docs/fit.md)
+RADIUS_FACTORS = (1.4, 1.6)
 FIRST_SHARE = 1 / 3               #: share of the ball budget that the first lattice may take
 STALL = 2e-4                      #: the solver stops once ten iterations gain less than this share
+#: a refinement ball's radius: its level's radius times one of these. Only wider: narrower balls fitted the
+#: voxel centres better and the optical depth worse (few centres hold their shape)
+RADIUS_CHOICES = (1.0, 1.4, 2.0)
+CANDIDATES = 2                    #: blocks whose radii are scored, per ball added
+TRIAL_STEPS = 16                  #: the radius trial's box: at most this many lattice steps a side
+POWER = 4                         #: power-iteration products for the solver's step
+TRANSPOSE_BLOCKS = 64              #: row ranges of the transpose (kernels.sparse.transpose)
+BLOCKS = 16                       #: blocks of rows of the solver's products (kernels.sparse.gradient)
 THRESHOLD_RATIO = 1.000001e-6       #: T / largest weight: just above the least the loader allows (|q| <= 10^6 T)
 
 
@@ -75,6 +90,44 @@ class FitResult:
         return Blob(self.centers, self.radii, self.weights, kernel="wyvill6", threshold=self.threshold)
 
 
+class _Columns:
+    """The kernel matrix of some balls: compressed columns (voxels x balls; ``indptr`` int64, ``indices``
+    int32 flat voxel indices ascending within a column, ``data`` float32), kernels.sparse's layout."""
+
+    def __init__(self, indptr, indices, data, n_rows):
+        self.indptr, self.indices, self.data, self.n_rows = indptr, indices, data, int(n_rows)
+
+    @property
+    def shape(self):
+        return self.n_rows, len(self.indptr) - 1
+
+    def dot(self, w):
+        """A w (float64, every voxel)."""
+        out = np.empty(self.n_rows)
+        sparse.column_sum(self.indptr, self.indices, self.data, np.ascontiguousarray(w, dtype=float), out)
+        return out
+
+    def tdot(self, v):
+        """A^T v (float64, one a ball)."""
+        out = np.empty(self.shape[1])
+        sparse.column_dots(self.indptr, self.indices, self.data, np.ascontiguousarray(v, dtype=float), out)
+        return out
+
+    def select(self, keep):
+        return _Columns(*sparse.select_columns(self.indptr, self.indices, self.data,
+                                               np.ascontiguousarray(keep, dtype=np.bool_)), self.n_rows)
+
+    @staticmethod
+    def hstack(parts):
+        offsets = np.cumsum([0] + [len(a.indices) for a in parts[:-1]])
+        indptr = np.concatenate([parts[0].indptr[:1]] + [a.indptr[1:] + o for a, o in zip(parts, offsets)])
+        return _Columns(indptr, np.concatenate([a.indices for a in parts]),
+                        np.concatenate([a.data for a in parts]), parts[0].n_rows)
+
+    def toarray(self):
+        return sp.csc_matrix((self.data, self.indices, self.indptr), shape=self.shape).toarray()
+
+
 class _Problem:
     """The grid, its voxel size and the columns of the kernel matrix of the balls in play."""
 
@@ -89,38 +142,14 @@ class _Problem:
         self.occupied = self.y > 0
 
     def columns(self, centers, radius):
-        """CSC matrix (voxels x balls, float32) of k(|x_v - c|^2 / R^2) at the voxel centres x_v, one radius."""
-        h = self.h
-        reach = np.ceil(radius / h).astype(np.int64)
-        ax = [np.arange(-r, r + 2) for r in reach]
-        ox, oy, oz = np.meshgrid(*ax, indexing="ij")
-        offs = np.stack([ox.ravel(), oy.ravel(), oz.ravel()], axis=1)
-        # only offsets that some centre in its voxel cell [0, 1)^3 can reach
-        gap = np.maximum(np.maximum(-offs, offs - 1), 0) * h
-        offs = offs[np.einsum("kc,kc->k", gap, gap) < radius ** 2]
-        n = len(centers)
-        cols, rows, vals = [], [], []
-        idx = (centers - self.lower) / h - 0.5          # continuous voxel index of each centre
-        base = np.floor(idx).astype(np.int64)
-        chunk = max(1, 4_000_000 // len(offs))
-        nx, ny, nz = self.shape
-        for s in range(0, n, chunk):
-            b = base[s:s + chunk, None, :] + offs[None, :, :]        # (m, K, 3) voxel indices
-            d = (b - idx[s:s + chunk, None, :]) * h
-            u = np.einsum("mkc,mkc->mk", d, d) / radius ** 2
-            ok = (u < 1.0) & (b >= 0).all(axis=2) & (b[..., 0] < nx) & (b[..., 1] < ny) & (b[..., 2] < nz)
-            m_i, k_i = np.nonzero(ok)
-            bb = b[m_i, k_i]
-            rows.append(((bb[:, 0] * ny + bb[:, 1]) * nz + bb[:, 2]).astype(np.int32))
-            cols.append(m_i + s)
-            uu = u[m_i, k_i]
-            vals.append(((1.0 - uu) ** 2 * (1.0 - 4.0 * uu / 9.0)).astype(np.float32))
-        rows = np.concatenate(rows) if rows else np.zeros(0, np.int32)
-        cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
-        vals = np.concatenate(vals) if vals else np.zeros(0, np.float32)
-        # np.nonzero keeps the balls in order and, within one, the voxels ascending: CSC as it stands
-        indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))]).astype(np.int64)
-        return sp.csc_matrix((vals, rows, indptr), shape=(int(np.prod(self.shape)), n))
+        """The matrix (_Columns: voxels x balls, float32) of k(|x_v - c|^2 / R^2) at the voxel centres x_v;
+        ``radius`` one for all or one a ball."""
+        centers = np.asarray(centers, dtype=float).reshape(-1, 3)
+        idx = np.ascontiguousarray((centers - self.lower) / self.h - 0.5)   # continuous voxel index
+        radii = np.ascontiguousarray(np.broadcast_to(np.asarray(radius, dtype=float), (len(centers),)))
+        indptr, rows, vals = sparse.kernel_columns(idx, radii, np.ascontiguousarray(self.h, dtype=float),
+                                                   self.shape.astype(np.int64))
+        return _Columns(indptr, rows, vals, int(np.prod(self.shape)))
 
     def blocks(self, spacing):
         """The lattice of ``spacing`` (physical; stretched per axis to fill the box): (counts per axis, the
@@ -135,48 +164,64 @@ class _Problem:
     def lattice(self, spacing):
         """(centres, block keys, largest step) of the lattice of ``spacing`` at the middle of each block of
         voxels that holds density."""
-        counts, key, step = self.blocks(spacing)
-        keys = np.unique(key[self.yflat > 0])
+        counts = np.maximum(1, np.floor((self.upper - self.lower) / spacing + 1e-9).astype(np.int64))
+        step = (self.upper - self.lower) / counts
+        if not hasattr(self, "_occupied_index"):   # the occupied voxels alone: the search tries many spacings
+            self._occupied_index = np.nonzero(self.occupied)
+        b = [np.minimum(((i + 0.5) * self.h[a] // step[a]).astype(np.int64), counts[a] - 1)
+             for a, i in enumerate(self._occupied_index)]
+        keys = np.unique((b[0] * counts[1] + b[1]) * counts[2] + b[2])
         bi = np.stack(np.unravel_index(keys, tuple(counts)), axis=1)
         return self.lower + (bi + 0.5) * step, keys, float(step.max())
 
 def _fista(A, y, w0, iterations, tol=STALL):
     """min 0.5 |A w - y|^2, w >= 0: accelerated projected gradient on unit-norm columns, with adaptive
     restart (O'Donoghue & Candes 2015), in single precision (half the memory traffic of the matrix-vector
-    products, which take the time; the weights need no more). Stops after ``iterations`` or once ten
-    iterations lower the squared residual by less than ``tol`` of it. Returns w (float64)."""
+    products, which take the time; the weights need no more; each product sums in double precision).
+    The products run on every core (cloudmeta.kernels.sparse), with the same bits whatever the number of
+    threads. Stops after ``iterations`` or once ten iterations lower the squared residual by less than
+    ``tol`` of it. Returns w (float64) and the iterations run."""
+    indptr = np.asarray(A.indptr, dtype=np.int64)
     # only the voxels that some ball reaches take part (the others add a constant to the residual)
-    used = np.zeros(A.shape[0], dtype=bool)
-    used[A.indices] = True
-    rows = np.flatnonzero(used)
-    lookup = (np.cumsum(used) - 1).astype(np.int32)
-    A = sp.csc_matrix((A.data, lookup[A.indices], A.indptr), shape=(len(rows), A.shape[1]))
-    y = y[rows]
-    norms = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
-    norms[norms == 0] = 1.0
-    B = (A @ sp.diags(1.0 / norms)).tocsc().astype(np.float32)
-    Bt = B.T.tocsr()
-    y = y.astype(np.float32)
-    # Lipschitz constant |B|^2 by power iteration (a 10 % margin over its estimate)
-    v = np.full(B.shape[1], 1.0 / math.sqrt(B.shape[1]), dtype=np.float32)
-    lam = 1.0
-    for _ in range(15):   # the Perron vector of a non-negative Gram matrix is near uniform: few steps
-        z = Bt @ (B @ v)
-        lam_new = float(np.linalg.norm(z))
-        v = z / lam_new
-        if abs(lam_new - lam) < 1e-3 * lam_new:
-            lam = lam_new
-            break
-        lam = lam_new
-    step = 1.0 / (1.1 * lam)
+    rows, local = sparse.compact_rows(np.asarray(A.indices, dtype=np.int32), np.int64(A.shape[0]))
+    m, n = len(rows), A.shape[1]
+    y = y[rows].astype(np.float32)
+    data = np.empty(len(local), dtype=np.float32)
+    norms = sparse.scale_columns(indptr, np.asarray(A.data, dtype=np.float32), data)
+    # B (voxels x balls) read along its rows: the transpose of the columns
+    bptr, bidx, bval = sparse.transpose(indptr, local, data, np.int64(m), np.int64(TRANSPOSE_BLOCKS))
+    bidx = bidx.view(np.uint32)
+    # blocks of rows of about equal entries, as many whatever the number of threads (determinism)
+    bounds = np.searchsorted(bptr, np.arange(BLOCKS + 1) * (bptr[-1] / BLOCKS)).astype(np.int64)
+    bounds[0], bounds[-1] = 0, m
+    partial = np.empty((BLOCKS, n))
+    r = np.empty(m, dtype=np.float32)
+    g = np.empty(n, dtype=np.float32)
+
+    def gradient(v, target):
+        sparse.gradient(bptr, bidx, bval, bounds, v, target, r, partial, g)
+        return g
+
+    # step 1 / L, L >= |B|^2: the least of the largest row sum of the non-negative Gram matrix B^T B
+    # (Gershgorin, from the first product) and 1.1 x the Rayleigh quotient after POWER steps of the power
+    # iteration from the uniform vector (0.94-0.98 of |B|^2 on the fit's matrices, measured)
+    zero = np.zeros(m, dtype=np.float32)
+    v = np.ones(n, dtype=np.float32)
+    lam = np.inf
+    for k in range(POWER):
+        gv = gradient(v, zero).astype(np.float64)
+        if k == 0:
+            lam = float(gv.max())
+        rayleigh = float(np.dot(v, gv) / np.dot(v, v))
+        v = (gv / np.linalg.norm(gv)).astype(np.float32)
+    lam = min(lam, 1.1 * rayleigh)
+    step = np.float32(1.0 / lam)
     x = np.maximum(w0 * norms, 0.0).astype(np.float32)
-    step = np.float32(step)
     z, t = x.copy(), 1.0
     f_old = np.inf
     for it in range(iterations):
-        r = B @ z - y
-        g = Bt @ r
-        x_new = np.maximum(z - step * g, 0.0)
+        gradient(z, y)
+        x_new = np.maximum(z - step * g, np.float32(0.0))
         t_new = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))
         if np.dot(z - x_new, x_new - x) > 0:   # restart: momentum points uphill
             t_new = 1.0
@@ -189,7 +234,7 @@ def _fista(A, y, w0, iterations, tol=STALL):
             if f_old - f < tol * f_old:
                 break
             f_old = f
-    return x.astype(np.float64) / norms
+    return x.astype(np.float64) / norms, it + 1
 
 
 def _progress(total, show):
@@ -203,18 +248,19 @@ def _quasi_interpolant(A, y):
     """Weights q_j = (a_j . y) / (a_j . A 1): each ball takes the kernel-weighted mean of the grid over its
     support, divided by how many balls cover it there (Shepard's normalisation): a start near the solution
     for a lattice, so that the solver needs fewer iterations."""
-    cover = A @ np.ones(A.shape[1])
-    den = A.T @ cover
-    return np.where(den > 0, (A.T @ y) / np.maximum(den, 1e-300), 0.0)
+    den = A.tdot(A.dot(np.ones(A.shape[1])))
+    return np.where(den > 0, A.tdot(y) / np.maximum(den, 1e-300), 0.0)
 
 
 def _radius_factor(P, centers, step, iterations):
     """The radius of the first lattice, in lattice steps: of RADIUS_FACTORS, the one whose short solve
-    leaves the least residual, tried on the middle eighth of the box where the grid is large (the lattice
-    is the same there; the time an eighth)."""
+    leaves the least residual, tried on the middle of the box where the grid is large: its middle eighth,
+    or TRIAL_STEPS lattice steps a side where that is less (the lattice is the same there; a few thousand
+    balls decide as well as all)."""
     sub, c = P, centers
     if (P.shape >= 32).all():
-        lo_i, hi_i = P.shape // 4, P.shape - P.shape // 4
+        half = np.minimum(P.shape // 4, np.ceil(0.5 * TRIAL_STEPS * step / P.h).astype(np.int64))
+        lo_i, hi_i = P.shape // 2 - half, P.shape // 2 + half
         lower, upper = P.lower + lo_i * P.h, P.lower + hi_i * P.h
         inner = ((centers > lower) & (centers < upper)).all(axis=1)
         y = P.y[lo_i[0]:hi_i[0], lo_i[1]:hi_i[1], lo_i[2]:hi_i[2]]
@@ -223,11 +269,37 @@ def _radius_factor(P, centers, step, iterations):
     best = None
     for f in RADIUS_FACTORS:
         A = sub.columns(c, f * step)
-        w = _fista(A, sub.yflat, _quasi_interpolant(A, sub.yflat), iterations)
-        res = float(np.linalg.norm(A @ w - sub.yflat))
+        w, _ = _fista(A, sub.yflat, _quasi_interpolant(A, sub.yflat), iterations)
+        res = float(np.linalg.norm(A.dot(w) - sub.yflat))
         if best is None or res < best[0] * (1 - 1e-9):
             best = (res, f)
     return best[1]
+
+
+def _choose_radii(P, levels, order, which, local, r, factor, add):
+    """Of the candidate blocks ``order`` (indices into which/local), the ``add`` best, each at the best of
+    RADIUS_CHOICES times its level's radius: scored by the decrease of the squared residual that ball alone
+    would give, (a_j . r)_+^2 / |a_j|^2. Returns (the chosen entries of order, their radius multipliers)."""
+    cc = np.empty((len(order), 3))
+    cr = np.empty(len(order))
+    for li in range(min(2, len(levels))):
+        sel = which[order] == li
+        s_l, counts, key, unused, st = levels[li]
+        bi = np.stack(np.unravel_index(unused[local[order[sel]]], tuple(counts)), axis=1)
+        cc[sel] = P.lower + (bi + 0.5) * st
+        cr[sel] = factor * float(st.max())
+    best, best_m = np.zeros(len(order)), np.ones(len(order))
+    for m in RADIUS_CHOICES:
+        C = P.columns(cc, cr * m)
+        dots = C.tdot(r)
+        norms = sparse.scale_columns(C.indptr, C.data, np.empty_like(C.data))
+        score = np.where(dots > 0, dots ** 2 / norms ** 2, 0.0)
+
+        better = score > best * (1 + 1e-12)
+        best[better], best_m[better] = score[better], m
+    top = np.lexsort((np.arange(len(order)), -best))[:add]
+    top = top[best[top] > 0]
+    return order[top], best_m[top]
 
 
 def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200, progress=None,
@@ -260,15 +332,16 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
     factor = _radius_factor(P, centers, step, iterations // 3)
     radii = np.full(len(centers), factor * step)
     A = P.columns(centers, factor * step)
-    w = _fista(A, P.yflat, _quasi_interpolant(A, P.yflat), iterations)
+    w, its = _fista(A, P.yflat, _quasi_interpolant(A, P.yflat), iterations // 2)
 
     def prune(centers, radii, w, A):
         keep = w > 0
-        return centers[keep], radii[keep], w[keep], A[:, keep]
+        return centers[keep], radii[keep], w[keep], A.select(keep)
 
     centers, radii, w, A = prune(centers, radii, w, A)
-    err = float(np.linalg.norm(A @ w - P.yflat) / P.ynorm)
-    rounds = [{"balls": int(len(w)), "spacing": step, "density_error": err}]
+    r = P.yflat - A.dot(w)             # the residual, kept for the next round's scores
+    err = float(np.linalg.norm(r) / P.ynorm)
+    rounds = [{"balls": int(len(w)), "spacing": step, "density_error": err, "iterations": its}]
     if bar is not None:
         bar.update(len(w))
 
@@ -288,7 +361,6 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
             rounds[-1]["target_error"] = e
             if e <= error:
                 break
-        r = P.yflat - A @ w
         add = max(1, min(budget - len(w), max(int(growth * len(w)), 64)))
         gains, picks = [], []
         for li, (s_l, counts, key, unused, st) in enumerate(levels[:2]):
@@ -299,19 +371,25 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
         gain = np.concatenate(gains)
         which = np.concatenate(picks)
         local = np.concatenate([np.arange(len(g)) for g in gains])
-        order = np.lexsort((local, which, -gain))[:add]
+        multi = len(RADIUS_CHOICES) > 1
+        order = np.lexsort((local, which, -gain))[:CANDIDATES * add if multi else add]
         order = order[gain[order] > 0]
         if len(order) == 0:
             break
+        mult = np.ones(len(order))
+        if multi:
+            order, mult = _choose_radii(P, levels, order, which, local, r, factor, add)
         new_c, new_r = [], []
         for li in range(min(2, len(levels))):
-            chosen = np.sort(local[order[which[order] == li]])
-            if len(chosen) == 0:
+            at = np.flatnonzero(which[order] == li)
+            if len(at) == 0:
                 continue
+            sort = np.argsort(local[order[at]], kind="stable")
+            chosen, m_l = local[order[at]][sort], mult[at][sort]
             s_l, counts, key, unused, st = levels[li]
             bi = np.stack(np.unravel_index(unused[chosen], tuple(counts)), axis=1)
             new_c.append(P.lower + (bi + 0.5) * st)
-            new_r.append(np.full(len(chosen), factor * float(st.max())))
+            new_r.append(factor * float(st.max()) * m_l)
             levels[li][3] = np.delete(unused, chosen)
         levels = [lv for lv in levels if len(lv[3])]
         new_c, new_r = np.concatenate(new_c), np.concatenate(new_r)
@@ -320,11 +398,13 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
         new_r = np.concatenate([new_r[new_r == R] for R in np.unique(new_r)])
         centers = np.concatenate([centers, new_c])
         radii = np.concatenate([radii, new_r])
-        A = sp.hstack([A] + cols, format="csc")
-        w = _fista(A, P.yflat, np.concatenate([w, np.zeros(len(new_c))]), iterations // 2)
+        A = _Columns.hstack([A] + cols)
+        w, its = _fista(A, P.yflat, np.concatenate([w, np.zeros(len(new_c))]), iterations // 2)
         centers, radii, w, A = prune(centers, radii, w, A)
-        err_old, err = err, float(np.linalg.norm(A @ w - P.yflat) / P.ynorm)
-        rounds.append({"balls": int(len(w)), "spacing": float(radii.min() / factor), "density_error": err})
+        r = P.yflat - A.dot(w)
+        err_old, err = err, float(np.linalg.norm(r) / P.ynorm)
+        rounds.append({"balls": int(len(w)), "spacing": float(radii.min() / factor), "density_error": err,
+                       "iterations": its})
         if err > (1.0 - 1e-3) * err_old:  # the candidates left no longer help
             break
         if bar is not None:
@@ -332,9 +412,10 @@ def fit_arrays(density, lower, upper, balls=None, error=None, *, iterations=200,
             bar.refresh()
     if bar is not None:
         bar.close()
-    w = _fista(A, P.yflat, w, iterations)   # a last, longer solve of the final set
+    w, its = _fista(A, P.yflat, w, iterations)   # a last, longer solve of the final set
+    rounds[-1]["last_solve_iterations"] = its
     centers, radii, w, A = prune(centers, radii, w, A)
-    err = float(np.linalg.norm(A @ w - P.yflat) / P.ynorm)
+    err = float(np.linalg.norm(A.dot(w) - P.yflat) / P.ynorm)
     return _result(centers, radii, w, P, err, rounds, start, cpu0, factor)
 
 

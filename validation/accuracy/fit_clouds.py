@@ -1,5 +1,5 @@
-"""The fit's error against the number of balls on three voxel clouds that no metaball made (docs/fit.md,
-*Three voxel clouds*), each read through cloudmeta.fit.read_grid as a user's file would be:
+"""The fit's error against the number of balls on four voxel clouds that no metaball made (docs/fit.md,
+*Voxel clouds*), each read through cloudmeta.fit.read_grid as a user's file would be:
 
     noise    the procedural noise cloud of validation/accuracy/fit_error.py (128^3, 5 octaves, seed 1),
              saved as .npz
@@ -7,8 +7,12 @@
              (smooth blobs, wider at the top than at the base) times smoothed noise, the water content
              decaying with height above each thermal's core, in g m-3 on 128^3 voxels of 25 m with
              coordinates in m; read with conversion lwc:10um (sigma_t = 3 LWC / (2 rho_w r_e), per m)
-    vdb      the 128^3 noise cloud that validation/tools/write_vdb_fixtures.py --big writes with OpenVDB
-             itself (run under /usr/bin/python3, which has pyopenvdb; written here when missing)
+    vdb      the 128^3 noise that validation/tools/write_vdb_fixtures.py --big writes with OpenVDB itself
+             (run under /usr/bin/python3, which has pyopenvdb; written here when missing): white noise
+             box-blurred three times, filling 94 % of the box; the hard case, not cloud-like
+    cumulus  the 128^3 cumulus-like cloud that write_vdb_fixtures.py --cumulus writes with OpenVDB: two
+             towers with flat bases and domed tops, their surfaces displaced by fractal noise, the water
+             growing with height
 
 For each cloud and ball budget: the balls, the density's relative L2 error on the grid, the optical depth's
 relative RMSE along 10^4 random rays (exact tau of the balls against the grid's trilinear interpolant), and
@@ -36,7 +40,7 @@ from cloudmeta.fit.error import RAYS
 from cloudmeta.fit.procedural import noise_cloud
 
 N = 128
-CLOUDS = ("noise", "netcdf", "vdb")
+CLOUDS = ("noise", "netcdf", "vdb", "cumulus")
 WRITER = Path(__file__).resolve().parents[1] / "tools" / "write_vdb_fixtures.py"
 
 
@@ -93,10 +97,11 @@ def netcdf_file(path, n=N):
     return path
 
 
-def vdb_file(path):
+def vdb_file(path, option="--big"):
+    """The big OpenVDB file that the writer's ``option`` writes at ``path`` (written when missing)."""
     if not Path(path).exists():
         folder = tempfile.mkdtemp(prefix="fit_clouds_vdb_")
-        subprocess.run(["/usr/bin/python3", str(WRITER), folder, "--big", str(path)], check=True,
+        subprocess.run(["/usr/bin/python3", str(WRITER), folder, option, str(path)], check=True,
                        stdout=subprocess.DEVNULL)
     return path
 
@@ -110,6 +115,8 @@ def grid_of(name, folder):
                          conversion=LiquidWater(effective_radius=10e-6, units="g m-3"))
     if name == "vdb":
         return read_grid(vdb_file(folder / "noise128.vdb"))
+    if name == "cumulus":
+        return read_grid(vdb_file(folder / "cumulus128.vdb", "--cumulus"))
     raise ValueError(name)
 
 

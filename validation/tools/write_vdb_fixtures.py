@@ -27,6 +27,8 @@ OpenVDB's reading of them is checked against here.
 
     --big PATH   also write a 128^3 noise cloud at PATH (Blosc) and beside it as PATH_half (half floats,
                  Blosc), PATH_zlib and PATH_raw (uncompressed), for timing the reader (not fixtures)
+    --cumulus PATH   also write a 128^3 cumulus-like cloud at PATH (Blosc; ``cumulus`` below), for the fit's
+                 error on a cloud-like OpenVDB file (validation/accuracy/fit_clouds.py; not a fixture)
 """
 import json
 import os
@@ -97,6 +99,54 @@ def noise(shape, seed, scale=0.6):
             field = (np.roll(field, 1, axis) + field + np.roll(field, -1, axis)) / 3
     field = np.clip((field - field.mean()) * 8 + 0.3, 0, None)
     return (scale * field).astype(np.float32)
+
+
+def _value_noise(rng, n, cells):
+    """Value noise on an n^3 grid: random values on a lattice of ``cells`` cells a side, interpolated with a
+    smoothstep between lattice points (numpy only: the system Python has no scipy)."""
+    x = (np.arange(n) + 0.5) / n * cells
+    i0 = np.minimum(np.floor(x).astype(np.int64), cells - 1)
+    f = x - i0
+    f = f * f * (3.0 - 2.0 * f)
+    lattice = rng.random((cells + 1,) * 3)
+    a = lattice[i0] * (1 - f)[:, None, None] + lattice[i0 + 1] * f[:, None, None]
+    a = a[:, i0] * (1 - f)[None, :, None] + a[:, i0 + 1] * f[None, :, None]
+    return a[:, :, i0] * (1 - f)[None, None, :] + a[:, :, i0 + 1] * f[None, None, :]
+
+
+def _fbm(rng, n, octaves, cells):
+    """Fractal value noise (gain 1/2), in [0, 1], mean about 1/2."""
+    out, amp, total = np.zeros((n, n, n)), 1.0, 0.0
+    for o in range(octaves):
+        out += amp * _value_noise(rng, n, cells * 2 ** o)
+        total += amp
+        amp *= 0.5
+    return out / total
+
+
+def cumulus(n=128, seed=11):
+    """A cumulus-like field on n^3 voxels (index k up): two towers, each a column with a flat base, sides
+    that bulge and a domed top, its surface displaced by fractal noise (the turrets and holes of a
+    cauliflower cloud, down to 2 voxels), the water content growing with height above the base (adiabatic)
+    and with the depth inside the surface, times noise. No metaballs: a noise-displaced envelope."""
+    rng = np.random.default_rng(seed)
+    t = (np.arange(n) + 0.5) / n
+    x, y, z = t[:, None, None], t[None, :, None], t[None, None, :]
+    shape_noise = _fbm(rng, n, 5, 8) - 0.5
+    water_noise = _fbm(rng, n, 4, 3)
+    field = np.zeros((n, n, n))
+    for cx, cy, base, top, width in ((0.45, 0.5, 0.12, 0.9, 0.3), (0.8, 0.3, 0.12, 0.55, 0.15)):
+        h = (z - base) / (top - base)                                 # 0 at the base, 1 at the top
+        radius = width * np.sqrt(np.clip(1.0 - np.clip(h, 0, None) ** 2.5, 0.0, None)) * (1.0 + 0.25 * np.sin(
+            np.pi * np.clip(h, 0, 1)))                                 # widest a third of the way up
+        d = np.sqrt((x - cx) ** 2 + (y - cy) ** 2) / np.maximum(radius, 1e-6) - 1.0
+        depth = -(d + 1.8 * shape_noise)                             # > 0 inside the displaced surface
+        inside = np.clip(depth / 0.25, 0.0, 1.0) ** 0.6
+        water = inside * np.clip(h, 0.0, None) ** 0.5 * (h >= 0) * (h <= 1)
+        field = np.maximum(field, water)
+    field *= 0.5 + water_noise
+    field = np.clip(field - 0.02, 0.0, None)                          # no water below a threshold: the edge
+    return (field / field.max()).astype(np.float32)
 
 
 def fog_sphere(radius):
@@ -199,10 +249,14 @@ def resaver(workdir):
 
 
 def main(argv):
-    big = None
+    big = cumulus_path = None
     if "--big" in argv:
         i = argv.index("--big")
         big = argv[i + 1]
+        del argv[i:i + 2]
+    if "--cumulus" in argv:
+        i = argv.index("--cumulus")
+        cumulus_path = argv[i + 1]
         del argv[i:i + 2]
     folder = os.path.abspath(argv[0] if argv else DEFAULT)
     os.makedirs(folder, exist_ok=True)
@@ -252,6 +306,11 @@ def main(argv):
                     bigs.append(stem + suffix + ".vdb")
             for path in bigs:
                 print(f"{path}: {os.path.getsize(path)} bytes, 128^3 noise, {grid.leafCount()} leaves")
+        if cumulus_path:
+            os.makedirs(os.path.dirname(os.path.abspath(cumulus_path)), exist_ok=True)
+            grid = grid_from(cumulus(), (0, 0, 0), "density")
+            vdb.write(cumulus_path, grids=[grid])
+            print(f"{cumulus_path}: {os.path.getsize(cumulus_path)} bytes, 128^3 cumulus, {grid.leafCount()} leaves")
 
     for name in written:
         if name not in SAME:
