@@ -10,7 +10,7 @@ counting sort, its rows' entries in ascending column order).
 import numpy as np
 from numba import njit, prange
 
-from .config import NJIT, NJIT_PARALLEL
+from .config import NJIT, NJIT_INLINE, NJIT_PARALLEL
 
 
 @njit(**NJIT)
@@ -95,16 +95,11 @@ def compact_rows(indices, n_rows):
     return rows, local
 
 
-@njit(**NJIT)
-def _first_at_least(indices, start, stop, row):
-    """The first position in [start, stop) of sorted ``indices`` holding a row >= ``row`` (binary search)."""
-    while start < stop:
-        mid = (start + stop) // 2
-        if indices[mid] < row:
-            start = mid + 1
-        else:
-            stop = mid
-    return start
+@njit(**NJIT_INLINE)
+def _run_within(indices, start, stop, lo, hi):
+    """The entries [k0, k1) of one column (its sorted rows ``indices[start:stop]``) whose rows lie in [lo, hi)."""
+    rows = indices[start:stop]
+    return start + np.searchsorted(rows, lo), start + np.searchsorted(rows, hi)
 
 
 @njit(**NJIT_PARALLEL)
@@ -119,13 +114,9 @@ def transpose(indptr, indices, data, n_rows, blocks):
     for b in prange(blocks):
         lo, hi = b * n_rows // blocks, (b + 1) * n_rows // blocks
         for j in range(n):
-            start, stop = indptr[j], indptr[j + 1]
-            if start == stop or indices[start] >= hi or indices[stop - 1] < lo:
-                continue
-            k = _first_at_least(indices, start, stop, lo)
-            while k < stop and indices[k] < hi:
+            k0, k1 = _run_within(indices, indptr[j], indptr[j + 1], lo, hi)
+            for k in range(k0, k1):
                 out_ptr[indices[k] + 1] += 1
-                k += 1
     for i in range(n_rows):
         out_ptr[i + 1] += out_ptr[i]
     out_idx = np.empty(indices.shape[0], np.int32)
@@ -134,16 +125,12 @@ def transpose(indptr, indices, data, n_rows, blocks):
         lo, hi = b * n_rows // blocks, (b + 1) * n_rows // blocks
         fill = out_ptr[lo:hi].copy()
         for j in range(n):
-            start, stop = indptr[j], indptr[j + 1]
-            if start == stop or indices[start] >= hi or indices[stop - 1] < lo:
-                continue
-            k = _first_at_least(indices, start, stop, lo)
-            while k < stop and indices[k] < hi:
+            k0, k1 = _run_within(indices, indptr[j], indptr[j + 1], lo, hi)
+            for k in range(k0, k1):
                 p = fill[indices[k] - lo]
                 out_idx[p] = j
                 out_val[p] = data[k]
                 fill[indices[k] - lo] = p + 1
-                k += 1
     return out_ptr, out_idx, out_val
 
 
