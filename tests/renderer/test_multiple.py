@@ -358,7 +358,7 @@ def test_planned_paths_meet_their_target_and_tiles_agree(tmp_path):
     """ms_spp auto: a pilot over the frame plans paths per 16 x 16 block so that the paths' estimated relative
     RMSE against the scattered light meets the preset's target (draft: 10 %); the estimate the render reports is
     within the target, the plan gives the blocks that hold the cloud more paths than the empty ones, and a tile
-    is the same pixels of the whole frame (one plan per frame)."""
+    or one thread gives the same pixels as the whole frame on all threads (one plan per frame)."""
     from cloudmeta.renderer.frame import render_frame
     from cloudmeta.renderer.multiple import BLOCK, MIN_PATHS
     scene = _scene(tmp_path, PLANNED)
@@ -369,6 +369,12 @@ def test_planned_paths_meet_their_target_and_tiles_agree(tmp_path):
     assert plan.paths.max() > MIN_PATHS  # the cloud's blocks need more than the floor
     assert 0.0 < result.estimated <= 0.10
     assert plan.predicted <= 0.10
+    before = numba.get_num_threads()
+    try:  # one thread: the same plan, the same pixels
+        numba.set_num_threads(1)
+        np.testing.assert_array_equal(render_frame(scene, progress=False, seed=3).image, result.image)
+    finally:
+        numba.set_num_threads(before)
     tile = render_frame(scene, progress=False, seed=3, rows=(BLOCK - 3, 18), columns=(2, 19))
     np.testing.assert_array_equal(tile.image, result.image[BLOCK - 3:18, 2:19])
     np.testing.assert_array_equal(tile.plan.paths, plan.paths)
