@@ -135,6 +135,12 @@ def _details(verbose, result):
                  "has no error channels" if result.approximation is not None else
                  "per pixel in the EXR's channels error.R/G/B")
         verbose(f"estimated relative RMSE {result.estimated:.2e} (target of {target}; {where})")
+    plan = getattr(result, "plan", None)
+    if plan is not None:
+        h, w = result.image.shape[:2]
+        verbose(f"multiple-scattering paths planned to {plan.target:g}: {plan.mean_paths(h, w):.0f} per pixel on "
+                f"average, {int(plan.paths.max())} in the busiest 16 x 16 block, predicted {plan.predicted:.2e} "
+                f"(docs/multiple_scattering.md)")
     if scattered is not None and scattered.level is not None:
         verbose(f"quadrature calibrated for quality {settings.quality}: {_level_words(scattered.level)}"
                 + ("" if scattered.predicted is None else
