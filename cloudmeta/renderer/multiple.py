@@ -67,7 +67,7 @@ class PathPlan:
     target: float
     scattered_mean: float
     predicted: float
-    #: n_b = scale x sqrt(total_b / size_b) (``allocate_paths``, with the margin): the frame's rate, which a block's
+    #: the allocation's rate (``allocation_rate``, times the margin^2): the frame's, which a block's
     #: top-up applies to the variance its own paths measured; 0 where the pilot saw no light
     scale: float = 0.0
 
@@ -86,20 +86,13 @@ def plan_paths(scene, packed, target, single_mean, seed=0, progress=False) -> Pa
                                (seed + PILOT_STREAM) % (1 << 62), progress)
     variance = np.where(np.isfinite(stderr), stderr * stderr * PILOT_PATHS, 0.0)  # per path, per pixel and RGB
     norm = float(single_mean) + float(mean.mean())
-    nb_r, nb_c = -(-h // BLOCK), -(-w // BLOCK)
-    pad = np.zeros((nb_r * BLOCK, nb_c * BLOCK, 3))
-    pad[:h, :w] = variance
-    blocks = pad.reshape(nb_r, BLOCK, nb_c, BLOCK, 3)
-    total = blocks.sum(axis=(1, 3, 4))                                     # S_b
-    size = np.array([[min(BLOCK, h - i * BLOCK) * min(BLOCK, w - j * BLOCK) * 3 for j in range(nb_c)]
-                     for i in range(nb_r)], np.float64)                    # |b|, values per block
-    allowed = (target * norm) ** 2 * (h * w * 3)                           # the frame's sum of squared errors
+    total, size = _block_sums(variance)                                    # S_b, |b|
     scale = 0.0
     if not norm > 0.0 or not total.sum() > 0.0:
-        paths = np.full((nb_r, nb_c), MIN_PATHS, np.int64)
-    else:
-        scale = MARGIN * MARGIN * float(np.sqrt(total * size).sum()) / allowed
-        paths = np.clip(np.ceil(scale * np.sqrt(total / size)), MIN_PATHS, MAX_SPP).astype(np.int64)
+        paths = np.full(total.shape, MIN_PATHS, np.int64)
+    else:  # the frame's sum of squared errors allowed: (target x norm)^2 per value
+        scale = MARGIN * MARGIN * allocation_rate(total, size, (target * norm) ** 2 * (h * w * 3))
+        paths = np.clip(np.ceil(paths_at_rate(scale, total, size)), MIN_PATHS, MAX_SPP).astype(np.int64)
     predicted = float(np.sqrt((total / paths).sum() / (h * w * 3))) / norm if norm > 0.0 else 0.0
     return PathPlan(paths=paths, target=float(target), scattered_mean=norm, predicted=predicted, scale=scale)
 
@@ -117,23 +110,33 @@ def _block_sums(values):
             ones.reshape(nb_r, BLOCK, nb_c, BLOCK).sum(axis=(1, 3)))
 
 
-def allocate_paths(total, size, allowed):
-    """Paths per block (float) that keep sum_b total_b / n_b <= ``allowed`` with the fewest paths
-    sum_b n_b size_b (Lagrange): n_b = sum_c sqrt(total_c size_c) / allowed x sqrt(total_b / size_b), where
-    total_b is the sum of the per-path variances of block b's values and size_b their number."""
-    return np.sqrt(total * size).sum() / allowed * np.sqrt(total / size)
+def allocation_rate(total, size, allowed):
+    """The rate r of the fewest paths sum_b n_b size_b that keep sum_b total_b / n_b <= ``allowed``, where
+    total_b is the sum of the per-path variances of block b's values and size_b their number (Lagrange):
+    n_b = r sqrt(total_b / size_b) (``paths_at_rate``) with r = sum_b sqrt(total_b size_b) / allowed."""
+    return float(np.sqrt(total * size).sum()) / allowed
 
 
-def _paths_over(scene, packed, window, paths_at, seed, progress, max_order=None):
+def paths_at_rate(rate, total, size):
+    """Paths per block (float) at the allocation's ``rate``: in proportion to the RMS per-path standard
+    deviation of each block's values."""
+    return rate * np.sqrt(total / size)
+
+
+def _tracked_records(scene, packed, max_order):
+    """(the majorant grid, the light volumes) of the tracked flights: neither depends on the number of paths."""
+    base = path_settings(scene, 1, max_order)
+    return paths_grid(scene, packed.records.media, base), paths_volumes(scene, packed, base)
+
+
+def _paths_over(scene, packed, window, paths_at, seed, progress, max_order=None, tracked=None):
     """(mean, stderr), H x W x 3 over the frame (zero outside ``window``): paths_at(block_row, block_col) paths
     per pixel in each block of BLOCK x BLOCK pixels within the tile ``window``, one call of the kernel per row
     of a block on threads (each pixel's numbers are keyed by the pixel: the result depends neither on the
-    threads nor on the tile)."""
+    threads nor on the tile). ``tracked``: (grid, volumes) of ``_tracked_records``, made here when None."""
     max_order = scene.render.max_order if max_order is None else int(max_order)
     camera, records, quad = packed.camera._replace(seed=seed), packed.records, packed.quadrature
-    base = path_settings(scene, 1, max_order)
-    grid = paths_grid(scene, records.media, base)
-    volumes = paths_volumes(scene, packed, base)
+    grid, volumes = _tracked_records(scene, packed, max_order) if tracked is None else tracked
     w, h = scene.image.width, scene.image.height
     mean = np.zeros((h, w, 3))
     stderr = np.zeros((h, w, 3))
@@ -207,19 +210,21 @@ def _planned(scene, packed, window, plan, progress, max_order):
     b_r0, b_c0 = r_lo // BLOCK, c_lo // BLOCK
     blocks = ((b_r0 * BLOCK, min(h, -(-r_hi // BLOCK) * BLOCK)), (b_c0 * BLOCK, min(w, -(-c_hi // BLOCK) * BLOCK)))
     (R0, R1), (C0, C1) = blocks
+    max_order = scene.render.max_order if max_order is None else int(max_order)
+    tracked = _tracked_records(scene, packed, max_order)  # once for both passes
     mean, stderr = _paths_over(scene, packed, blocks, lambda i, j: int(plan.paths[i, j]), packed.camera.seed,
-                               progress, max_order)
+                               progress, max_order, tracked)
     if not plan.scale > 0.0:
         return mean, stderr
     n = plan.paths[b_r0:-(-R1 // BLOCK), b_c0:-(-C1 // BLOCK)]
     n1 = n.repeat(BLOCK, 0).repeat(BLOCK, 1)[:R1 - R0, :C1 - C0, None].astype(np.float64)
     total, size = _block_sums(stderr[R0:R1, C0:C1] ** 2 * n1)
-    wanted = np.clip(np.ceil(plan.scale * np.sqrt(total / size)), 0, MAX_SPP)
+    wanted = np.clip(np.ceil(paths_at_rate(plan.scale, total, size)), 0, MAX_SPP)
     extra = np.where(wanted > TOPUP * n, wanted - n, 0).astype(np.int64)
     if not extra.any():
         return mean, stderr
     more_mean, more_err = _paths_over(scene, packed, blocks, lambda i, j: int(extra[i - b_r0, j - b_c0]),
-                                      (packed.camera.seed + TOPUP_STREAM) % (1 << 62), progress, max_order)
+                                      (packed.camera.seed + TOPUP_STREAM) % (1 << 62), progress, max_order, tracked)
     # the two passes pooled: means weighted by their paths, per-path variances likewise
     n2 = extra.repeat(BLOCK, 0).repeat(BLOCK, 1)[:R1 - R0, :C1 - C0, None].astype(np.float64)
     m1, m2 = mean[R0:R1, C0:C1], more_mean[R0:R1, C0:C1]

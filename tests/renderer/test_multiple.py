@@ -386,14 +386,33 @@ def test_planned_paths_meet_their_target_and_tiles_agree(tmp_path):
 
 
 def test_plan_spends_paths_where_the_variance_is():
-    """allocate_paths: the fewest paths for the allowed sum of variances, each block's count in proportion to
-    its RMS per-path standard deviation, and no other allocation of as many paths does better."""
-    from cloudmeta.renderer.multiple import allocate_paths
+    """The allocation plan_paths and the top-up use (allocation_rate, paths_at_rate): the sum of variances
+    allowed exactly, each block's count in proportion to its RMS per-path standard deviation, and no other
+    allocation of as many paths does better."""
+    from cloudmeta.renderer.multiple import allocation_rate, paths_at_rate
     total = np.array([[4.0, 1.0], [0.0, 16.0]])
     size = np.full((2, 2), 3.0)
-    n = allocate_paths(total, size, 2.0)
+    n = paths_at_rate(allocation_rate(total, size, 2.0), total, size)
     used = lambda m: (total / np.where(m > 0, m, 1.0)).sum()  # noqa: E731
     assert np.isclose(used(n), 2.0)
     assert np.isclose(n[1, 1], 2 * n[0, 0]) and np.isclose(n[0, 0], 2 * n[0, 1]) and n[1, 0] == 0.0
     uniform = np.where(total > 0, (n * size).sum() / (size[total > 0]).sum(), 0.0)
     assert used(uniform) > used(n)
+
+
+def test_plan_is_the_allocation_of_the_pilots_variance(tmp_path):
+    """plan_paths on a frame: its counts are the allocation (times the margin, at least MIN_PATHS) of the per-path
+    variance its pilot measured, and the error it predicts is the target over the margin where no floor binds."""
+    from cloudmeta.renderer import multiple as rm
+    from cloudmeta.renderer.pack import pack_scene
+    scene = _scene(tmp_path, PLANNED)
+    packed = pack_scene(scene, 3)
+    plan = rm.plan_paths(scene, packed, 0.10, 0.0, seed=3)
+    h, w = scene.image.height, scene.image.width
+    mean, stderr = rm._paths_over(scene, packed, ((0, h), (0, w)), lambda r, c: rm.PILOT_PATHS,
+                                  (3 + rm.PILOT_STREAM) % (1 << 62), False)
+    total, size = rm._block_sums(stderr * stderr * rm.PILOT_PATHS)
+    rate = rm.MARGIN ** 2 * rm.allocation_rate(total, size, (0.10 * mean.mean()) ** 2 * h * w * 3)
+    assert plan.scale == pytest.approx(rate, rel=1e-12)
+    np.testing.assert_array_equal(plan.paths, np.maximum(np.ceil(rm.paths_at_rate(rate, total, size)), rm.MIN_PATHS))
+    assert plan.predicted <= 0.10 / rm.MARGIN * (1 + 1e-9)

@@ -71,23 +71,23 @@ def comparison_scene(scene, size, spp, scattering, paths=None):
     return replace(scene, image=image, background=np.zeros(3), ambient=None, sky=None, render=render)
 
 
-def cloudmeta_images(scene, seeds):
-    import cloudmeta as cm
+def _timed_images(render, seeds):
+    """([render(seed)[..., :3] as float64 for each seed], their process CPU time in all)."""
     out, cpu = [], 0.0
     for seed in seeds:
         c0 = time.process_time()
-        out.append(np.asarray(cm.render(scene, progress=False, seed=seed), np.float64)[..., :3])
+        out.append(np.asarray(render(seed), np.float64)[..., :3])
         cpu += time.process_time() - c0
     return out, cpu
+
+
+def cloudmeta_images(scene, seeds):
+    import cloudmeta as cm
+    return _timed_images(lambda seed: cm.render(scene, progress=False, seed=seed), seeds)
 
 
 def mitsuba_images(mi, ms, spp, seeds):
-    out, cpu = [], 0.0
-    for seed in seeds:
-        c0 = time.process_time()
-        out.append(np.array(mi.render(ms, spp=spp, seed=seed), np.float64)[..., :3])
-        cpu += time.process_time() - c0
-    return out, cpu
+    return _timed_images(lambda seed: np.array(mi.render(ms, spp=spp, seed=seed)), seeds)
 
 
 def compare(a_halves, b_halves):
