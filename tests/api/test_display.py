@@ -10,7 +10,7 @@ from PIL import Image
 
 import cloudmeta.api.display as d
 from cloudmeta.api.io import encode_outputs, png_settings, write_png
-from cloudmeta.errors import InputError, SceneError
+from cloudmeta.errors import InputError, OutputError, SceneError
 from cloudmeta.scene import load_scene
 from cloudmeta.scene.colour import encode_srgb, parse_colour
 
@@ -276,6 +276,12 @@ def test_a_sequence_gets_one_picture_held_from_its_first_frame(tmp_path):
     again = render_frames(scene, range(3), out / "f_{frame}.exr", png=out / "f_{frame}.png", progress=False)
     assert again.skipped == [0, 2] and again.rendered == [1] and again.stops == report.stops
     assert (out / "f_1.png").read_bytes() == before
+    # ... and where that EXR cannot be read, one line names it before any work
+    (out / "f_1.exr").unlink()
+    (out / "f_0.exr").write_bytes(b"not an exr")
+    with pytest.raises(OutputError, match=r"f_0\.exr: cannot read frame 0, whose image sets the sequence's auto "):
+        render_frames(scene, range(3), out / "f_{frame}.exr", png=out / "f_{frame}.png", progress=False)
+    assert not (out / "f_1.exr").exists()
     # the first frame asked for sets it, whatever its number
     other = render_frames(scene, [2, 0], tmp_path / "b_{frame}.exr", png=tmp_path / "b_{frame}.png", progress=False)
     assert other.exposure_frame == 2 and other.stops == d.exposure_of(
