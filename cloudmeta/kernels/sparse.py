@@ -11,6 +11,8 @@ import numpy as np
 from numba import njit, prange
 
 from .config import NJIT, NJIT_INLINE, NJIT_PARALLEL
+from .kinds import WYVILL6
+from .metaball import falloff
 
 
 @njit(**NJIT)
@@ -28,7 +30,7 @@ def _reach(idx, r, n):
 @njit(**NJIT)
 def _ball_column(j, idx, radius, h, shape, rows, vals, write):
     """Counts (and, where ``write`` >= 0, stores from position ``write``) ball j's kernel values
-    k(u) = (1 - u)^2 (1 - 4u/9), u = |x_v - c|^2 / R^2 < 1, at the voxel centres x_v, voxels ascending."""
+    k(u) (wyvill6, metaball.falloff), u = |x_v - c|^2 / R^2 < 1, at the voxel centres x_v, voxels ascending."""
     r2 = radius[j] * radius[j]
     i0, i1 = _reach(idx[j, 0], radius[j] / h[0], shape[0])
     j0, j1 = _reach(idx[j, 1], radius[j] / h[1], shape[1])
@@ -47,7 +49,7 @@ def _ball_column(j, idx, radius, h, shape, rows, vals, write):
                 if u < 1.0:
                     if write >= 0:
                         rows[write + m] = (a * shape[1] + b) * shape[2] + c
-                        vals[write + m] = np.float32((1.0 - u) * (1.0 - u) * (1.0 - 4.0 * u / 9.0))
+                        vals[write + m] = np.float32(falloff(WYVILL6, u, 0.0))
                     m += 1
     return m
 
