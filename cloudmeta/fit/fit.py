@@ -51,12 +51,6 @@ BLOCKS = 16                       #: blocks of rows of the solver's products (ke
 THRESHOLD_RATIO = 1.000001e-6       #: T / largest weight: just above the least the loader allows (|q| <= 10^6 T)
 
 
-def kernel(u):
-    """wyvill6, k(u) = (1 - u)^2 (1 - 4u/9) for u < 1, else 0 (docs/model.md §1)."""
-    u = np.asarray(u, dtype=float)
-    return np.where(u < 1.0, (1.0 - u) ** 2 * (1.0 - 4.0 * u / 9.0), 0.0)
-
-
 @dataclass
 class FitResult:
     """The fitted balls (centres, radii in grid units; weights q >= 0 in sigma_t per unit length, scale 1),
