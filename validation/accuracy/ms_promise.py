@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from cloudmeta.renderer.frame import render_frame
-from validation.accuracy.approximate import REPORT, reference, rel_error, scene_of
+from validation.accuracy.approximate import FIT, REPORT, reference, rel_error, scene_of
 from validation.common import RESULTS, parse, parser, run_main, with_settings, write_csv
 
 
@@ -27,11 +27,12 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--paths", type=int, default=2048, help="paths per pixel of the references")
     ap.add_argument("--quality", nargs="+", default=["draft"])
-    ap.add_argument("--scenes", nargs="+", default=list(REPORT))
+    ap.add_argument("--scenes", nargs="+", default=list(REPORT), choices=list(REPORT) + list(FIT),
+                    help="the report's six (default) or the approximate mode's four fitting scenes (held out here)")
     args, _ = parse(ap, argv)
     rows = []
     for name in args.scenes:
-        path = REPORT[name]
+        path = {**REPORT, **FIT}[name]
         u, se, bt, _ = reference(name, path, args.size, args.paths)
         render_frame(with_settings(scene_of(path, 4, "multiple"), ms_spp=1), progress=False)  # kernels loaded
         for quality in args.quality:
