@@ -4,14 +4,16 @@ validation.accuracy.approximate's six report scenes, against their converged ref
 
 Per scene (64 x 48 unless --size, ambient removed; the references of approximate.py, 1,024 paths unless
 --paths, seed 0): single scattering, the octaves and the grid at ``default``; multiple scattering at ``default`` with
-each of ``--spp`` paths per pixel (seed 1), raw and with ``denoise=True``. The time is the whole
+each of ``--spp`` paths per pixel (seed 1), raw and with ``denoise=True``; the paths planned to the
+``--planned`` presets' targets (seed 1). The time is the whole
 render_frame call, kernels loaded; the error the relative RMSE over the mean scattered radiance, the
 reference's own variance subtracted (approximate.rel_error). Prints a table, writes
 validation/results/ms_methods_SIZE.csv and plots error against time per scene to ms_methods_SIZE.png.
 The grid's time is nearly all its photons, which do not depend on the image size: at 512 x 512 it is
 7-11x single scattering (docs/approximate.md), not the 7-180x seen at 64 x 48.
 
-    python -m validation.accuracy.ms_methods [--size 64] [--paths 1024] [--spp 4 16 64 256] [--no-csv]
+    python -m validation.accuracy.ms_methods [--size 64] [--paths 1024] [--spp 4 16 64 256]
+        [--planned draft default] [--no-csv]
 """
 from __future__ import annotations
 
@@ -35,6 +37,8 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--paths", type=int, default=1024, help="paths per pixel of the references")
     ap.add_argument("--spp", type=int, nargs="+", default=[4, 16, 64, 256])
+    ap.add_argument("--planned", nargs="*", default=["draft", "default"],
+                    help="quality presets whose planned paths are timed too")
     args, _ = parse(ap, argv)
     rows = []
     for name, path in REPORT.items():
@@ -47,6 +51,8 @@ def main(argv=None):
         for n in args.spp:
             s = with_settings(scene_of(path, args.size, "multiple"), quality="default", ms_spp=n)
             runs += [(f"paths {n}", s, dict(seed=1)), (f"denoised {n}", s, dict(seed=1, denoise=True))]
+        for q in args.planned:  # the paths planned to the preset's target (docs/multiple_scattering.md)
+            runs.append((f"planned {q}", with_settings(scene_of(path, args.size, "multiple"), quality=q), dict(seed=1)))
         for method, scene, kw in runs:
             image, seconds = _timed(scene, **kw)
             err = rel_error(image, u, se, bt)
@@ -69,9 +75,11 @@ def plot(rows, out, size):
             ax.plot([r["seconds"] for r in pts], [r["error"] for r in pts], style,
                     label="multiple, unbiased" if kind == "paths" else "multiple, denoised")
         for method, marker, label in (("single", "v", "single scattering"), ("octaves", "^", "approximate (octaves)"),
-                                      ("grid", "D", "approximate (grid)")):
-            r = next(r for r in mine if r["method"] == method)
-            ax.plot([r["seconds"]], [r["error"]], marker, markersize=9, label=label)
+                                      ("grid", "D", "approximate (grid)"), ("planned draft", "P", "planned paths, draft"),
+                                      ("planned default", "X", "planned paths, default")):
+            r = next((r for r in mine if r["method"] == method), None)
+            if r is not None:
+                ax.plot([r["seconds"]], [r["error"]], marker, markersize=9, label=label)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_title(name, fontsize=10)
@@ -81,7 +89,7 @@ def plot(rows, out, size):
     for ax in axes[:, 0]:
         ax.set_ylabel("relative RMSE (of the scattered light)")
     axes.flat[0].legend(fontsize=8)
-    fig.suptitle(f"Multiply scattered light: time against error, {size} px wide, against 1,024-path references")
+    fig.suptitle(f"Multiply scattered light: time against error, {size} px wide, against converged references")
     save_figure(fig, out)
 
 
