@@ -1,0 +1,252 @@
+"""A prototype of sharing the multiply scattered light along the camera's optical depth, measured.
+
+Per sample camera ray (every ``stride``-th pixel in each direction, and the last row and column), at fixed
+optical depths tau_a of the ray (TAUS), K path tails estimate Q(tau_a) = (sigma_s / sigma_t) J(x), J the
+light of orders >= 2 (and >= 1 of the environment) that x scatters towards the camera: exactly what a path
+of the unbiased estimator adds after its first vertex (renderer.multiple), started at x instead of at a
+random depth. Each pixel then takes the integral over its own ray of e^-tau Q(tau) d tau up to its own
+optical depth U, Q bilinear between the four neighbouring sample rays at equal tau (those whose U passes
+tau), linear in tau. With stride 1 every pixel has its own ray and only the depths are fixed.
+
+Error as validation.accuracy.approximate.rel_error against its references (64 x 48, 2,048 paths, their
+noise subtracted), with single scattering at ``fine`` added. A prototype: the tails' outer loops run in
+Python, each vertex a call of the compiled kernels.multiple.tracked_vertex (about 0.5 ms a path), so its
+times say nothing about speed; the number of paths does.
+
+    python -m validation.accuracy.ms_tau_sharing [--scenes cumulus_front bank_front] [--strides 4 2 1] [--paths 16 64]
+"""
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+import cloudmeta as cm
+from cloudmeta.kernels.bvh import misses_root_boxes
+from cloudmeta.kernels.camera import camera_ray
+from cloudmeta.kernels.intervals import alloc_ray_work
+from cloudmeta.kernels.media import n_media
+from cloudmeta.kernels.multiple import (DIM_MEDIUM, DIM_ROULETTE, locate_depth, scattering_mix, trace_segment,
+                                        tracked_vertex)
+from cloudmeta.kernels.records import PathKey
+from cloudmeta.kernels.sampling import sample_phase_cos, sobol4, turn, uniform
+from cloudmeta.kernels.tracking import alloc_track_work
+from cloudmeta.renderer.multiple import _tracked_records
+from cloudmeta.renderer.pack import pack_scene
+from cloudmeta.renderer.quality import resolve_settings
+from cloudmeta.renderer.tracking import path_settings
+from validation.accuracy.approximate import REPORT, reference, rel_error, scene_of
+from validation.common import parse, parser, run_main, with_settings
+
+TAUS = np.array([0.02, 0.1, 0.25, 0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0, 9.0])
+
+
+def tau_tails(camera, scene, quad, settings, grid, volumes, rows, cols, taus, K, seed, out, u_out):
+    work = alloc_ray_work(scene)
+    camera_work = alloc_ray_work(scene)
+    track = alloc_track_work(n_media(scene.media))
+    d = np.empty(3)
+    o = np.empty(3)
+    dd = np.empty(3)
+    d_new = np.empty(3)
+    light = np.empty(3)
+    est = np.empty(3)
+    x0 = np.empty(3)
+    has_env = False
+    for q in range(scene.background.shape[0]):
+        for c in range(3):
+            has_env = has_env or scene.background[q, c] > 0.0
+    max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
+    n_tau = taus.shape[0]
+    for q in range(rows.shape[0]):
+        i, j = rows[q], cols[q]
+        camera_ray(camera, i, j, 0, 1, d)
+        u_out[q] = 0.0
+        for a in range(n_tau):
+            for c in range(3):
+                out[q, a, c] = np.nan
+        if misses_root_boxes(camera.position, d, scene.media.bvh):
+            continue
+        camera_work, n_el, u_total, _ = trace_segment(camera.position, d, scene, tol_t, camera_work)
+        u_out[q] = u_total
+        if n_el == 0:
+            continue
+        rp = camera_work.pieces
+        for a in range(n_tau):
+            if taus[a] >= u_total or K == 0:
+                continue
+            forced = taus[a] < 0.0
+            escape = -math.expm1(-u_total)
+            k, s, t = locate_depth(max(taus[a], 0.0), n_el, rp)
+            for c in range(3):
+                x0[c] = camera.position[c] + t * d[c]
+            acc0 = 0.0
+            acc1 = 0.0
+            acc2 = 0.0
+            pixel = (i * camera.width + j) * 64 + a
+            if taus[a] < 0.0:
+                pixel = i * camera.width + j
+            for path in range(K):
+                key = PathKey(seed, pixel, path)
+                if forced:
+                    xi = sobol4(seed, pixel, path, 0)[0]
+                    k, s, t = locate_depth(-math.log1p(-xi * escape), n_el, rp)
+                    for c in range(3):
+                        x0[c] = camera.position[c] + t * d[c]
+                ratio, m = scattering_mix(k, s, rp, scene.media, uniform(seed, pixel, path, 0, DIM_MEDIUM))
+                if ratio <= 0.0:
+                    continue
+                if forced:
+                    ratio *= escape
+                for c in range(3):
+                    o[c] = x0[c]
+                    dd[c] = d[c]
+                    est[c] = 0.0
+                _, u_cos, u_phi, u_lobe = sobol4(seed, pixel, path, 0)
+                weight = ratio
+                weight_1 = ratio
+                for n_vert in range(1, max_order + 1):
+                    ph = scene.media.phase[m]
+                    cos_theta = sample_phase_cos(ph[0], ph[1], ph[2], ph[3], u_lobe, u_cos)
+                    turn(dd, cos_theta, u_phi, d_new)
+                    for c in range(3):
+                        dd[c] = d_new[c]
+                    work, weight, m, u_cos, u_phi, u_lobe, done = tracked_vertex(
+                        o, dd, n_vert, weight, key, scene, grid, volumes, tol_t, has_env, max_order, work, track,
+                        light, est)
+                    if done or weight <= 0.0:
+                        break
+                    if n_vert + 1 >= rr_order:
+                        survive = min(1.0, weight / weight_1)
+                        if uniform(seed, pixel, path, n_vert, DIM_ROULETTE) >= survive:
+                            break
+                        weight /= survive
+                acc0 += est[0]
+                acc1 += est[1]
+                acc2 += est[2]
+            out[q, a, 0] = acc0 / K
+            out[q, a, 1] = acc1 / K
+            out[q, a, 2] = acc2 / K
+
+
+
+def run_tails(packed, settings, grid, volumes, rows, cols, taus, K, seed, threads=2):
+    n = len(rows)
+    out = np.full((n, len(taus), 3), np.nan)
+    u = np.zeros(n)
+    parts = np.array_split(np.arange(n), threads * 4)
+    cam, rec, quad = packed.camera, packed.records, packed.quadrature
+
+    def go(idx):
+        if len(idx) == 0:
+            return
+        o = np.full((len(idx), len(taus), 3), np.nan)
+        uu = np.zeros(len(idx))
+        tau_tails(cam, rec, quad, settings, grid, volumes, rows[idx].astype(np.int64), cols[idx].astype(np.int64),
+                  taus, np.int64(K), np.int64(seed), o, uu)
+        out[idx] = o
+        u[idx] = uu
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(go, parts))
+    return out, u
+
+
+def sample_axis(n, s):
+    ax = np.arange(0, n, s)
+    if ax[-1] != n - 1:
+        ax = np.append(ax, n - 1)
+    return ax
+
+
+def gather(Q, U_s, rows_ax, cols_ax, U_pix, taus, n_grid=600):
+    """Per pixel int_0^U e^-tau Q(tau) dtau, Q bilinear between sample rays at each tau node (valid ones only),
+    piecewise linear in tau, held constant outside the nodes."""
+    H, W = U_pix.shape
+    nr, nc = len(rows_ax), len(cols_ax)
+    Qg = Q.reshape(nr, nc, len(taus), 3)
+    img = np.zeros((H, W, 3))
+    for i in range(H):
+        r1 = np.searchsorted(rows_ax, i)
+        r0 = max(r1 - 1, 0) if rows_ax[min(r1, nr - 1)] != i else min(r1, nr - 1)
+        r1 = min(r1, nr - 1)
+        fr = 0.0 if r1 == r0 else (i - rows_ax[r0]) / (rows_ax[r1] - rows_ax[r0])
+        for j in range(W):
+            U = U_pix[i, j]
+            if U <= 0:
+                continue
+            c1 = np.searchsorted(cols_ax, j)
+            c0 = max(c1 - 1, 0) if cols_ax[min(c1, nc - 1)] != j else min(c1, nc - 1)
+            c1 = min(c1, nc - 1)
+            fc = 0.0 if c1 == c0 else (j - cols_ax[c0]) / (cols_ax[c1] - cols_ax[c0])
+            nb = [(r0, c0, (1 - fr) * (1 - fc)), (r0, c1, (1 - fr) * fc), (r1, c0, fr * (1 - fc)), (r1, c1, fr * fc)]
+            prof = np.full((len(taus), 3), np.nan)
+            for a in range(len(taus)):
+                if taus[a] >= U and a > 0 and taus[a - 1] >= U:
+                    break
+                acc = np.zeros(3)
+                wsum = 0.0
+                for (rr, cc, w) in nb:
+                    if w > 0 and not np.isnan(Qg[rr, cc, a, 0]):
+                        acc += w * Qg[rr, cc, a]
+                        wsum += w
+                if wsum > 0:
+                    prof[a] = acc / wsum
+            ok = ~np.isnan(prof[:, 0])
+            if not ok.any():
+                # no neighbour reaches this pixel's first node: nearest sample ray with any value
+                cand = [Qg[rr, cc][~np.isnan(Qg[rr, cc, :, 0])] for (rr, cc, w) in nb]
+                cand = [c_[0] for c_ in cand if len(c_)]
+                if not cand:
+                    continue
+                prof[0] = np.mean(cand, axis=0)
+                ok = ~np.isnan(prof[:, 0])
+            tk, qk = taus[ok], prof[ok]
+            t = np.linspace(0, min(U, 40.0), n_grid)
+            wts = np.exp(-t)
+            vals = np.stack([np.interp(t, tk, qk[:, c]) for c in range(3)], -1)
+            img[i, j] = np.trapezoid(wts[:, None] * vals, t, axis=0)
+    return img
+
+
+def main(argv=None):
+    ap = parser(__doc__)
+    ap.add_argument("--scenes", nargs="+", default=["cumulus_front", "bank_front"], choices=list(REPORT))
+    ap.add_argument("--strides", type=int, nargs="+", default=[4, 2, 1])
+    ap.add_argument("--paths", type=int, nargs="+", default=[16, 64], help="tails per sample point (K)")
+    ap.add_argument("--reference-paths", type=int, default=2048)
+    args, _ = parse(ap, argv)
+    rows = []
+    for name in args.scenes:
+        path = REPORT[name]
+        u, se, bt, _ = reference(name, path, 64, args.reference_paths)
+        s = with_settings(scene_of(path, 64, "multiple"), quality="fine")
+        single = cm.render(with_settings(s, scattering="single"), progress=False)[..., :3].astype(np.float64)
+        packed = pack_scene(s, 0, resolve_settings(s))
+        max_order = s.render.max_order
+        grid, volumes = _tracked_records(s, packed, max_order)
+        h, w = s.image.height, s.image.width
+        rr, cc = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+        _, u_all = run_tails(packed, path_settings(s, 1, max_order), grid, volumes, rr.ravel(), cc.ravel(), TAUS, 0, 1)
+        ms_ref = u - single
+        print(f"{name}: multiply scattered share of the reference {ms_ref.mean() / (u - bt).mean():.2f}", flush=True)
+        for stride in args.strides:
+            ra, ca = sample_axis(h, stride), sample_axis(w, stride)
+            R, C = np.meshgrid(ra, ca, indexing="ij")
+            for k in args.paths:
+                t0 = time.perf_counter()
+                q, u_s = run_tails(packed, path_settings(s, k, max_order), grid, volumes, R.ravel(), C.ravel(), TAUS,
+                                   k, 7)
+                seconds = time.perf_counter() - t0
+                image = gather(q, u_s, ra, ca, u_all.reshape(h, w), TAUS)
+                err = rel_error(single + image, u, se, bt)
+                n_paths = int(np.sum(~np.isnan(q[..., 0]))) * k
+                print(f"  stride {stride} K {k:5d}: {n_paths:8d} paths ({n_paths / (h * w):6.1f} a pixel), error {err:.4f},"
+                      f" mean / reference {image.mean() / ms_ref.mean():.3f}  ({seconds:.1f} s)", flush=True)
+                rows.append(dict(scene=name, stride=stride, paths=k, paths_per_pixel=n_paths / (h * w), error=err))
+    return dict(rows=rows)
+
+
+if __name__ == "__main__":
+    run_main(main)
