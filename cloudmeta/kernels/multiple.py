@@ -279,7 +279,9 @@ def tracked_vertex(o, d, n_vert, weight, key, scene, grid, volumes, tol_t, has_e
     forced collision); a flight that gets through sees the environment (its probability is the
     transmittance: the estimate is unbiased, and it costs no second walk) and ends the path. Otherwise o
     moves to the vertex, and the light scattered there (tracked_next_event) and the scattering mix follow.
-    Returns what exact_vertex returns."""
+    Returns what exact_vertex returns. Call it from a kernel that receives ``track`` as an argument: inlined
+    into the function that allocated the TrackWork, the copy into ``track.at_vertex`` was lost and every
+    next-event estimate came out 0 (not understood; docs/benchmarks.md, the sharing prototype)."""
     seed, pixel, path = key.seed, key.pixel, key.path
     scratch, t_hit, s_hit = surface_hit(o, d, scene.surfaces, tol_t, work)
     work = RayWork(scratch, work.pieces, work.cand, work.stack, work.nodes)

@@ -9,9 +9,8 @@ optical depth U, Q bilinear between the four neighbouring sample rays at equal t
 tau), linear in tau. With stride 1 every pixel has its own ray and only the depths are fixed.
 
 Error as validation.accuracy.approximate.rel_error against its references (64 x 48, 2,048 paths, their
-noise subtracted), with single scattering at ``fine`` added. A prototype: the tails' outer loops run in
-Python, each vertex a call of the compiled kernels.multiple.tracked_vertex (about 0.5 ms a path), so its
-times say nothing about speed; the number of paths does.
+noise subtracted), with single scattering at ``fine`` added. A prototype: its times are not tuned, the
+number of paths is the measure.
 
     python -m validation.accuracy.ms_tau_sharing [--scenes cumulus_front bank_front] [--strides 4 2 1] [--paths 16 64]
 """
@@ -22,10 +21,12 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from numba import njit
 
 import cloudmeta as cm
 from cloudmeta.kernels.bvh import misses_root_boxes
 from cloudmeta.kernels.camera import camera_ray
+from cloudmeta.kernels.config import NJIT
 from cloudmeta.kernels.intervals import alloc_ray_work
 from cloudmeta.kernels.media import n_media
 from cloudmeta.kernels.multiple import (DIM_MEDIUM, DIM_ROULETTE, locate_depth, scattering_mix, trace_segment,
@@ -43,10 +44,12 @@ from validation.common import parse, parser, run_main, with_settings
 TAUS = np.array([0.02, 0.1, 0.25, 0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0, 9.0])
 
 
-def tau_tails(camera, scene, quad, settings, grid, volumes, rows, cols, taus, K, seed, out, u_out):
+@njit(**NJIT)
+def tau_tails(camera, scene, quad, settings, grid, volumes, rows, cols, taus, K, seed, out, u_out, track):
+    # track (a records.TrackWork) comes from the caller: tracked_vertex inlined into the function that allocated
+    # it lost its copy into at_vertex (every next-event estimate 0); received as an argument, it is right
     work = alloc_ray_work(scene)
     camera_work = alloc_ray_work(scene)
-    track = alloc_track_work(n_media(scene.media))
     d = np.empty(3)
     o = np.empty(3)
     dd = np.empty(3)
@@ -145,7 +148,7 @@ def run_tails(packed, settings, grid, volumes, rows, cols, taus, K, seed, thread
         o = np.full((len(idx), len(taus), 3), np.nan)
         uu = np.zeros(len(idx))
         tau_tails(cam, rec, quad, settings, grid, volumes, rows[idx].astype(np.int64), cols[idx].astype(np.int64),
-                  taus, np.int64(K), np.int64(seed), o, uu)
+                  taus, np.int64(K), np.int64(seed), o, uu, alloc_track_work(np.int64(n_media(rec.media))))
         out[idx] = o
         u[idx] = uu
     with ThreadPoolExecutor(threads) as pool:
