@@ -12,7 +12,13 @@ Error as validation.accuracy.approximate.rel_error against its references (64 x 
 noise subtracted), with single scattering at ``fine`` added. A prototype: its times are not tuned, the
 number of paths is the measure.
 
+With ``--sizes`` (no reference needed) it measures instead how the sharing's bias depends on the image size:
+at each size, the tails of every pixel's own ray (two seeds, ``--paths`` per point) against the same tails at
+every s-th pixel, interpolated; bias^2 = mean (I_s,seed 1 - I_1,seed 2)^2 - the variances of both (each
+from its two seeds), relative to the frame's mean scattered light.
+
     python -m validation.accuracy.ms_tau_sharing [--scenes cumulus_front bank_front] [--strides 4 2 1] [--paths 16 64]
+    python -m validation.accuracy.ms_tau_sharing --scenes cumulus_front --sizes 64 128 256 --paths 256 128 32 --strides 2 4 8
 """
 from __future__ import annotations
 
@@ -38,7 +44,7 @@ from cloudmeta.renderer.multiple import _tracked_records
 from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.renderer.quality import resolve_settings
 from cloudmeta.renderer.tracking import path_settings
-from validation.accuracy.approximate import REPORT, reference, rel_error, scene_of
+from validation.accuracy.approximate import REPORT, background_times_t, reference, rel_error, scene_of
 from validation.common import parse, parser, run_main, with_settings
 
 TAUS = np.array([0.02, 0.1, 0.25, 0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0, 9.0])
@@ -219,7 +225,12 @@ def main(argv=None):
     ap.add_argument("--strides", type=int, nargs="+", default=[4, 2, 1])
     ap.add_argument("--paths", type=int, nargs="+", default=[16, 64], help="tails per sample point (K)")
     ap.add_argument("--reference-paths", type=int, default=2048)
+    ap.add_argument("--sizes", type=int, nargs="+", help="image widths of the bias-by-size measurement (with "
+                    "--paths: one count per size)")
     args, _ = parse(ap, argv)
+    if args.sizes:
+        return dict(rows=[row for name in args.scenes
+                          for size, k in zip(args.sizes, args.paths) for row in bias_by_size(name, size, k, args.strides)])
     rows = []
     for name in args.scenes:
         path = REPORT[name]
@@ -249,6 +260,41 @@ def main(argv=None):
                       f" mean / reference {image.mean() / ms_ref.mean():.3f}  ({seconds:.1f} s)", flush=True)
                 rows.append(dict(scene=name, stride=stride, paths=k, paths_per_pixel=n_paths / (h * w), error=err))
     return dict(rows=rows)
+
+
+def bias_by_size(name, size, k, strides):
+    """The sharing's bias floor per stride at this image width, against every pixel's own tails (module
+    docstring); prints and returns rows."""
+    s = with_settings(scene_of(REPORT[name], size, "multiple"), quality="default")
+    single = cm.render(with_settings(s, scattering="single"), progress=False)
+    bt = background_times_t(s, single)
+    single = single[..., :3].astype(np.float64)
+    packed = pack_scene(s, 0, resolve_settings(s))
+    max_order = s.render.max_order
+    grid, volumes = _tracked_records(s, packed, max_order)
+    h, w = s.image.height, s.image.width
+    rr, cc = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+    runs = [run_tails(packed, path_settings(s, k, max_order), grid, volumes, rr.ravel(), cc.ravel(), TAUS, k, seed)
+            for seed in (7, 8)]
+    u_pix = runs[0][1].reshape(h, w)
+    own = [gather(q, u, np.arange(h), np.arange(w), u_pix, TAUS) for q, u in runs]
+    scattered = float((single + 0.5 * (own[0] + own[1]) - bt).mean())
+    v_own = np.mean((own[0] - own[1]) ** 2) / 2
+    print(f"{name} {w} x {h}, {k} tails a point: every pixel's own tails' noise {np.sqrt(v_own) / scattered:.4f}",
+          flush=True)
+    rows = []
+    for stride in strides:
+        ra, ca = sample_axis(h, stride), sample_axis(w, stride)
+        shared = []
+        for q, _ in runs:
+            q_s = q.reshape(h, w, len(TAUS), 3)[np.ix_(ra, ca)].reshape(-1, len(TAUS), 3)
+            shared.append(gather(q_s, u_pix[np.ix_(ra, ca)].ravel(), ra, ca, u_pix, TAUS))
+        v_s = np.mean((shared[0] - shared[1]) ** 2) / 2
+        bias = np.sqrt(max(np.mean((shared[0] - own[1]) ** 2) - v_s - v_own, 0.0)) / scattered
+        print(f"  stride {stride}: bias {bias:.4f} of the scattered light (the shared image's noise "
+              f"{np.sqrt(v_s) / scattered:.4f})", flush=True)
+        rows.append(dict(scene=name, size=size, stride=stride, paths=k, bias=bias))
+    return rows
 
 
 if __name__ == "__main__":
