@@ -22,7 +22,6 @@ from its two seeds), relative to the frame's mean scattered light.
 """
 from __future__ import annotations
 
-import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -86,29 +85,18 @@ def tau_tails(camera, scene, quad, settings, grid, volumes, rows, cols, taus, K,
         for a in range(n_tau):
             if taus[a] >= u_total or K == 0:
                 continue
-            forced = taus[a] < 0.0
-            escape = -math.expm1(-u_total)
-            k, s, t = locate_depth(max(taus[a], 0.0), n_el, rp)
+            k, s, t = locate_depth(taus[a], n_el, rp)
             for c in range(3):
                 x0[c] = camera.position[c] + t * d[c]
             acc0 = 0.0
             acc1 = 0.0
             acc2 = 0.0
-            pixel = (i * camera.width + j) * 64 + a
-            if taus[a] < 0.0:
-                pixel = i * camera.width + j
+            pixel = (i * camera.width + j) * 64 + a  # each depth of each ray its own random stream
             for path in range(K):
                 key = PathKey(seed, pixel, path)
-                if forced:
-                    xi = sobol4(seed, pixel, path, 0)[0]
-                    k, s, t = locate_depth(-math.log1p(-xi * escape), n_el, rp)
-                    for c in range(3):
-                        x0[c] = camera.position[c] + t * d[c]
                 ratio, m = scattering_mix(k, s, rp, scene.media, uniform(seed, pixel, path, 0, DIM_MEDIUM))
                 if ratio <= 0.0:
                     continue
-                if forced:
-                    ratio *= escape
                 for c in range(3):
                     o[c] = x0[c]
                     dd[c] = d[c]
