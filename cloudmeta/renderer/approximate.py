@@ -109,6 +109,8 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     each_pixel(lambda i, j: render_pixels(camera, single, quad, i, j, j + 1, exact, nearest, counts))
     approx = image[rows - r_lo, cols - c_lo, :3]
     background = background_along(records.background, pixel_directions(camera, rows, cols))
+    if packed.ground is not None:  # the clouds' shadow on the ground (renderer.ground), over the frame's tile
+        background = background - packed.ground[rows - r_lo, cols - c_lo]
     frac = cloud / tile.size
     while True:
         settings = settings._replace(paths=int(paths))

@@ -67,27 +67,30 @@ def estimated_rel_rmse(image, error, scattered_mean=0.0):
     return float(np.sqrt(np.mean(e * e))) / norm if norm > 0 else 0.0
 
 
-def background_seen(camera, background, window):
+def background_seen(camera, background, window, shadow=None):
     """Per pixel of the tile ``window`` = ((r0, r1), (c0, c1)), the background's radiance along the ray through the
     pixel's centre (renderer.pack: pixel_directions, background_along), H x W x 3; a uniform background as its one
-    row."""
+    row. ``shadow`` (H x W x 3, renderer.ground), where the scene places a ground, is taken from it."""
     if background.shape[0] == 1:
-        return background[0]
-    (r0, r1), (c0, c1) = window
-    rows, cols = np.mgrid[r0:r1, c0:c1]
-    directions = pixel_directions(camera, rows.ravel(), cols.ravel())
-    return background_along(background, directions).reshape(r1 - r0, c1 - c0, 3)
+        seen = background[0]
+    else:
+        (r0, r1), (c0, c1) = window
+        rows, cols = np.mgrid[r0:r1, c0:c1]
+        directions = pixel_directions(camera, rows.ravel(), cols.ravel())
+        seen = background_along(background, directions).reshape(r1 - r0, c1 - c0, 3)
+    return seen if shadow is None else seen - shadow
 
 
-def frame_scattered_mean(image, nearest, camera, background, window, sampled):
+def frame_scattered_mean(image, nearest, camera, background, window, sampled, shadow=None):
     """The mean scattered radiance of the estimate's denominator: the image less the background seen through the
-    media (alpha = 1 - transmittance), where no surface is hit, from the image itself; where some pixel hits a
+    media (alpha = 1 - transmittance; less the clouds' ``shadow`` on a ground, renderer.ground), where no surface is
+    hit, from the image itself; where some pixel hits a
     surface (whose shading is exact too, and not told apart) at least ``sampled``, the calibration's or the pilot's
     mean. A sample of rays misses a bright spot that the frame does not: deck_point_inside's lamp at 256 x 192, whose
     calibration grid measured 2.6x too little scattered light."""
     rgb = np.asarray(image, np.float64)[..., :3]
     transmittance = 1.0 - np.asarray(image, np.float64)[..., 3:4]
-    scattered = rgb - background_seen(camera, background, window) * transmittance
+    scattered = rgb - background_seen(camera, background, window, shadow) * transmittance
     surface = np.isfinite(nearest)
     if not surface.any():
         return float(scattered.mean())

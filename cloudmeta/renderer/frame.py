@@ -20,6 +20,7 @@ from ..scene.vocabulary import SCATTERING_MODES, ShadowMode
 from .threads import tile_window
 from .denoise import aux_images, denoise_paths, require_denoiser
 from .fluence import with_radiance_grid
+from .ground import ground_shadow
 from .estimate import estimated_rel_rmse, frame_scattered_mean, with_estimate
 from .approximate import approximation_error, check_approximate
 from .multiple import check_multiple, plan_paths, render_multiple
@@ -127,15 +128,24 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         # for exact shadows, without the map code, runs it 3 % faster (the 1,200-ball bank at 512 x 512)
         packed = packed._replace(records=without_maps(scene, packed.records))
     target = settings.error
+    # the clouds' shadow on a ground the scene places (renderer.ground): what it takes from the background
+    packed = packed._replace(ground=ground_shadow(scene, packed.camera, packed.quadrature.tol_t, window))
+
+    def single(packed_q):  # the deterministic image, its background shaded where the ground is in shadow
+        image, nearest, counts = render_single(scene, packed_q, window, progress)
+        if packed.ground is not None:
+            image[..., :3] -= packed.ground * (1.0 - image[..., 3:4])
+        return image, nearest, counts
 
     def scattered_norm(image, nearest):  # the estimate's denominator (renderer.estimate.frame_scattered_mean)
-        return frame_scattered_mean(image, nearest, packed.camera, packed.records.background, window, scattered.mean)
+        return frame_scattered_mean(image, nearest, packed.camera, packed.records.background, window, scattered.mean,
+                                    packed.ground)
     if error or target is not None:  # renderer.estimate: a second, coarser render; refined to the target
         done = {}
 
         def at(q):  # the image at these settings (the records do not depend on them); kept for the one chosen
             packed_q = packed._replace(quadrature=quadrature(q))
-            done[q] = (packed_q, *render_single(scene, packed_q, window, progress))
+            done[q] = (packed_q, *single(packed_q))
             return done[q][1]
 
         def norm(image):  # (the surfaces a ray hits do not depend on the settings: any render's nearest will do)
@@ -144,7 +154,7 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         packed, _, nearest, counts = done[quality]
     else:
         err = None
-        image, nearest, counts = render_single(scene, packed, window, progress)
+        image, nearest, counts = single(packed)
     plan = None
     if estimator.paths is not None:
         if settings.paths_target is not None:  # planned over the whole frame: the same plan for every tile

@@ -391,7 +391,9 @@ def map_tolerance(quality):
 # --- the whole scene --------------------------------------------------------------------------------------
 
 #: a scene packed once for every estimator: records.Camera, records.SceneRecords, records.Quadrature
-Packed = namedtuple("Packed", ["camera", "records", "quadrature"])
+#: ground: the clouds' shadow on a ground the scene places, H x W x 3 over the frame's tile (renderer.ground),
+#: set by renderer.frame; None where there is none
+Packed = namedtuple("Packed", ["camera", "records", "quadrature", "ground"], defaults=(None,))
 
 
 def pack_scene(scene, seed, settings: FrameSettings | None = None) -> Packed:

@@ -263,6 +263,13 @@ def ground_air_mass(view_deg):
         return np.minimum(GROUND_AIR_PATH / np.sin(depression), air_mass(0.0))
 
 
+def _ground_transmittance(view_deg, aerosol_depth):
+    """(n, wavelengths) the air's transmittance between the observer and the ground along view elevations
+    ``view_deg`` < 0 (``ground_air_mass``)."""
+    tau_r, tau_a = _depths(aerosol_depth)
+    return np.exp(-(tau_r + tau_a) * ground_air_mass(view_deg)[:, None])
+
+
 def _ground_spectra(view_deg, sun_deg, aerosol_depth, ground):
     """(n, wavelengths) the ground of spectral radiance ``ground`` seen along view elevations ``view_deg`` < 0
     through the air below the observer (``ground_air_mass``): L = ground T + L_air (1 - T), T = exp(-tau m_g),
@@ -273,7 +280,7 @@ def _ground_spectra(view_deg, sun_deg, aerosol_depth, ground):
     tau_r, tau_a = _depths(aerosol_depth)
     tau = tau_r + tau_a
     p_r, p_a = _mean_phases(view_deg, sun_deg)
-    transmittance = np.exp(-tau * ground_air_mass(view_deg)[:, None])
+    transmittance = _ground_transmittance(view_deg, aerosol_depth)
     with np.errstate(invalid="ignore", divide="ignore"):
         air = sun * np.exp(-tau * air_mass(sun_deg)) * np.where(
             tau > 0, (tau_r * p_r[:, None] + AEROSOL_ALBEDO * tau_a * p_a[:, None]) / tau, 0.0)
@@ -299,6 +306,35 @@ def sky_xyz(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, ground_albed
     out[:90] = _ground_spectra(np.arange(-90.0, 0.0), s, aerosol_depth, ground) @ weights
     out[90:] = sky @ weights
     return out
+
+
+def ground_sun_xyz(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, ground_albedo=DEFAULT_GROUND_ALBEDO):
+    """(181, 3) XYZ, rows as ``sky_xyz``'s: below the horizon the part of the ground's radiance that the sun
+    lights directly, albedo / pi sin h E_sun, seen through the air below the observer; 0 above the horizon.
+    It is what a cloud's shadow takes from ``sky_xyz``'s ground where the cloud hides the sun entirely
+    (docs/atmosphere.md, *The cloud's shadow on the ground*)."""
+    s, aerosol_depth = float(sun_elevation_deg), float(aerosol_depth)
+    _check(s, aerosol_depth)
+    view = np.arange(-90.0, 0.0)
+    lit = ground_reflectance(ground_albedo) / np.pi * np.sin(np.radians(s)) * sun_spectrum(s, aerosol_depth)
+    out = np.zeros((SKY_ROWS, 3))
+    out[:90] = (lit * _ground_transmittance(view, aerosol_depth)) @ spectra()[3]
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _ground_sun_table(sun_elevation_deg, aerosol_depth, colourspace, ground_albedo):
+    table = _rgb(ground_sun_xyz(sun_elevation_deg, aerosol_depth, ground_albedo), colourspace)
+    table.setflags(write=False)
+    return table
+
+
+def ground_sun_table(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, colourspace=DEFAULT_COLOURSPACE,
+                     ground_albedo=DEFAULT_GROUND_ALBEDO):
+    """(181, 3) read-only linear RGB of ``ground_sun_xyz``, per unit extraterrestrial luminance, as
+    ``sky_table`` gives the sky."""
+    return _ground_sun_table(float(sun_elevation_deg), float(aerosol_depth), colourspace,
+                             ground_albedo_of(ground_albedo))
 
 
 @functools.lru_cache(maxsize=64)
@@ -348,3 +384,8 @@ class Sun:
         """(181, 3) its sky's radiance (``sky_table``) times ``irradiance``: rows are elevations -90 .. 90."""
         with np.errstate(over="ignore"):
             return self.irradiance * sky_table(self.elevation, self.aerosol_depth, colourspace, ground_albedo)
+
+    def ground_sun(self, colourspace=DEFAULT_COLOURSPACE, ground_albedo=DEFAULT_GROUND_ALBEDO):
+        """(181, 3) the sunlit part of its sky's ground (``ground_sun_table``) times ``irradiance``."""
+        with np.errstate(over="ignore"):
+            return self.irradiance * ground_sun_table(self.elevation, self.aerosol_depth, colourspace, ground_albedo)

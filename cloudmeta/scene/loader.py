@@ -21,7 +21,7 @@ from .balls import read_blob
 from .colour import DEFAULT_COLOURSPACE, _is_illuminant as is_illuminant, colourspace_name
 from .document import Context, Node, describe, fmt_numbers, frozen_array, is_finite_number, read_yaml
 from .feasibility import check_domain
-from .model import Camera, Density, ImageSettings, Medium, OutputSettings, Phase, RenderSettings, Scene, Surface
+from .model import Camera, Density, Ground, ImageSettings, Medium, OutputSettings, Phase, RenderSettings, Scene, Surface
 from .atmosphere import DEFAULT_GROUND_ALBEDO, ground_albedo_of, sky_mean
 from .lights import SUN_KEYS, SunLight, read_light, read_sun, unit
 from .vocabulary import (APPROXIMATE_METHODS, AUTO_EXPOSURE, DENSITY_MODES, DISPLAYS, GRID_DEPOSITS, OCTAVES,
@@ -207,8 +207,9 @@ def _output(top):
 
 
 _COLOUR_FORMS = "a colour ([r, g, b], {temperature: K} or {illuminant: NAME})"
-_SKY_FORMS = ("sky (the sky of the scene's one sun light), {sky: {ground_albedo}} (that sky over another ground) or "
-              "{sky: {elevation, azimuth, turbidity or aerosol_depth, irradiance, ground_albedo}}")
+_SKY_FORMS = ("sky (the sky of the scene's one sun light), {sky: {ground_albedo, ground_height}} (that sky over "
+              "another ground) or {sky: {elevation, azimuth, turbidity or aerosol_depth, irradiance, ground_albedo, "
+              "ground_height}}")
 
 
 def _is_sky(raw):
@@ -216,16 +217,21 @@ def _is_sky(raw):
     return raw == "sky" or (isinstance(raw, dict) and "sky" in raw)
 
 
-def _sky_of_sun(top, key, lights, cs, ground_albedo=DEFAULT_GROUND_ALBEDO):
-    """The sky of the scene's one ``type: sun`` light over a ground of ``ground_albedo``; an error naming
-    ``key`` if it has none or several."""
+def _sun_of_scene(top, key, lights):
+    """The atmosphere.Sun of the scene's one ``type: sun`` light; an error naming ``key`` if it has none or
+    several."""
     suns = [light.sun for light in lights if isinstance(light, SunLight)]
     if len(suns) != 1:
         found = "none" if not suns else f"{len(suns)}"
         top.fail(key, f"sky is the sky of the scene's one light of type: sun, found {found}; add one "
                       f"(lights: [{{type: sun, elevation: DEGREES}}]) or give the sky itself: "
                       f"background: {{sky: {{elevation: DEGREES, ...}}}}")
-    return suns[0].sky(cs, ground_albedo)
+    return suns[0]
+
+
+def _sky_of_sun(top, key, lights, cs, ground_albedo=DEFAULT_GROUND_ALBEDO):
+    """The sky of the scene's one ``type: sun`` light over a ground of ``ground_albedo``."""
+    return _sun_of_scene(top, key, lights).sky(cs, ground_albedo)
 
 
 _GROUND_ALBEDO = "an albedo in [0, 1] (grey) or [r, g, b], each in [0, 1] (linear BT.709)"
@@ -241,24 +247,38 @@ def _ground_albedo(s):
     return s.number("ground_albedo", DEFAULT_GROUND_ALBEDO, check=lambda v: 0 <= v <= 1, expect=_GROUND_ALBEDO)
 
 
-def _sky(top, cs, lights):
-    """(181, 3) the sky of ``background: sky`` or ``background: {sky: {...}}`` (docs/atmosphere.md)."""
+#: the keys of ``background: {sky: {...}}`` that place and colour the ground, besides the sun's
+_GROUND_KEYS = ("ground_albedo", "ground_height")
+
+
+def _sky(top, cs, lights, camera):
+    """(181, 3) the sky of ``background: sky`` or ``background: {sky: {...}}`` (docs/atmosphere.md), and its
+    ground as a model.Ground where ``ground_height`` places it (else None)."""
     raw = top.data.get("background")
     if raw == "sky":
-        sky, where = _sky_of_sun(top, "background", lights, cs), "background"
+        sun, albedo, s = _sun_of_scene(top, "background", lights), DEFAULT_GROUND_ALBEDO, None
+        where = "background"
     else:
         n = top.node("background", ("sky",))
-        s = n.node("sky", SUN_KEYS + ("ground_albedo",))
+        s = n.node("sky", SUN_KEYS + _GROUND_KEYS)
         albedo = _ground_albedo(s)
-        if set(s.data) == {"ground_albedo"}:  # the ground alone: the sky of the scene's one sun over it
-            sky, where = _sky_of_sun(top, "background", lights, cs, albedo), "background"
+        if set(s.data) <= set(_GROUND_KEYS):  # the ground alone: the sky of the scene's one sun over it
+            sun, where = _sun_of_scene(top, "background", lights), "background"
         else:
             sun = read_sun(s)
-            sky, where = sun.sky(cs, albedo), s.key("irradiance")
+            where = s.key("irradiance")
+    sky = sun.sky(cs, albedo)
     if not np.max(sky) <= lim.MAX_RADIANCE:
         top.ctx.fail(where, f"expected the sky's radiance <= {lim.MAX_RADIANCE:g} (README: Limits), its largest is "
                             f"{np.max(sky):.3g}")
-    return frozen_array(sky)
+    ground = None
+    if s is not None and "ground_height" in s.data:
+        z = float(camera.position[2])
+        height = s.number("ground_height", check=lambda v: abs(v) <= lim.LENGTH_RANGE[1] and v < z,
+                          expect=f"a number below the camera's height (its z, {z:g})")
+        ground = Ground(height, frozen_array(sun.ground_sun(cs, albedo)),
+                        frozen_array(np.asarray(sun.direction(), np.float64)))
+    return frozen_array(sky), ground
 
 
 #: what _colour_or_sky returns where a key asks for a sky: read once the lights are
@@ -314,9 +334,9 @@ def _scene(ctx, data, width, height, spp, render):
     background = _colour_or_sky(top, "background", cs, [0.0, 0.0, 0.0])
     ambient = _colour_or_sky(top, "ambient", cs, None)
     lights = tuple(read_light(ctx, p, raw, cs) for p, raw in top.items("lights"))
-    sky = None
+    sky = ground = None
     if background is _SKY:  # a sky: its mean over the sphere where one uniform colour is needed
-        sky = _sky(top, cs, lights)
+        sky, ground = _sky(top, cs, lights, camera)
         background = frozen_array(sky_mean(sky))
     if ambient is _SKY:
         ambient = _ambient_sky(top, cs, lights, sky)
@@ -325,6 +345,6 @@ def _scene(ctx, data, width, height, spp, render):
     if not media and not surfaces:
         ctx.fail("media", "a scene needs at least one medium or surface, found none")
     scene = Scene(ctx.file, image, camera, background, ambient, lights, media, surfaces, render, _output(top),
-                  tuple(ctx.inputs), ctx.merged_balls, sky=sky)
+                  tuple(ctx.inputs), ctx.merged_balls, sky=sky, ground=ground)
     check_domain(ctx, scene)
     return scene

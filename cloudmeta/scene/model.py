@@ -101,6 +101,15 @@ class OutputSettings:
 
 
 @dataclass(frozen=True, eq=False)
+class Ground:
+    """The sky's ground placed in the scene, so that the clouds shade it (``background: {sky: {ground_height}}``,
+    docs/atmosphere.md): the plane z = ``height``, and what the sun alone gives it as seen from the camera."""
+    height: float        #: z of the flat ground, below the camera
+    sun: np.ndarray      #: (181, 3) read-only: the sky table's sunlit part of the ground (rows as Scene.sky's)
+    direction: np.ndarray  #: (3,) unit vector towards the sun
+
+
+@dataclass(frozen=True, eq=False)
 class Scene:
     path: str
     image: ImageSettings
@@ -118,6 +127,8 @@ class Scene:
     #: degrees, 1 degree apart (row i: elevation i - 90, z up), the same at every azimuth; None otherwise.
     #: ``background`` is then its mean over the sphere (docs/atmosphere.md)
     sky: np.ndarray | None = None
+    #: ``background: {sky: {ground_height}}``: the ground as a plane that the media shade; None otherwise
+    ground: Ground | None = None
 
     def bbox(self):
         """(lo, hi) of the union of every medium's and surface's balls."""

@@ -196,6 +196,33 @@ def test_08b_the_ground_fades_into_the_haze_towards_the_horizon(monkeypatch):
     assert atm.ground_air_mass(-90.0) == pytest.approx(atm.GROUND_AIR_PATH)
 
 
+def test_08d_the_suns_share_of_the_ground(monkeypatch):
+    """ground_sun_xyz: the part of the ground's radiance that the sun lights directly, albedo / pi sin h E_sun,
+    seen through the same air as the whole ground; none above the horizon; at most the whole."""
+    sun, aerosol_depth, albedo = 35.0, 0.15, 0.25
+    share = atm.ground_sun_xyz(sun, aerosol_depth, albedo)
+    np.testing.assert_array_equal(share[90:], 0.0)
+    whole = atm.sky_xyz(sun, aerosol_depth, albedo)
+    assert np.all(share[:90] > 0) and np.all(share[:90] < whole[:90])
+    assert 0.5 < share[0, 1] / whole[0, 1] < 1.0 and share[89, 1] / whole[89, 1] < 0.3  # the haze is lit anyway
+    # the naive twin: the spectrum through the air's transmittance exp(-tau m_g), then to XYZ
+    wl, _, _, weights = atm.spectra()
+    tau_r, tau_a = atm._depths(aerosol_depth)
+    view = np.arange(-90.0, 0.0)
+    seen = np.exp(-np.outer(atm.ground_air_mass(view), tau_r + tau_a))
+    lit = albedo / np.pi * np.sin(np.radians(sun)) * atm.sun_spectrum(sun, aerosol_depth)
+    np.testing.assert_allclose(share[:90], (seen * lit) @ weights, rtol=1e-13)
+    # with no air in between, the bare ground's sun term: albedo / pi sin h times the sun's XYZ
+    monkeypatch.setattr(atm, "GROUND_AIR_PATH", 0.0)
+    bare = atm.ground_sun_xyz(sun, aerosol_depth, albedo)
+    np.testing.assert_allclose(bare[:90], albedo / np.pi * np.sin(np.radians(sun)) * atm.sun_xyz(sun, aerosol_depth)
+                               * np.ones((90, 1)), rtol=1e-13)
+    monkeypatch.undo()
+    np.testing.assert_array_equal(atm.ground_sun_xyz(sun, aerosol_depth, 0.0), 0.0)
+    table = atm.ground_sun_table(sun, aerosol_depth)
+    assert table.shape == (181, 3) and not table.flags.writeable and np.all(table <= atm.sky_table(sun, aerosol_depth))
+
+
 def test_08c_a_coloured_ground(monkeypatch):
     """An RGB albedo is a reflectance spectrum (Mallett & Yuksel 2019's basis) whose colour under D65 is that
     RGB; a grey one is the number's flat spectrum, bit for bit; the sky above is unchanged."""
@@ -349,7 +376,26 @@ def test_14b_a_coloured_ground_in_the_scene(tmp_path):
     np.testing.assert_array_equal(s.sky, load(tmp_path, background="sky").sky)
 
 
+def test_14c_a_ground_placed_in_the_scene(tmp_path):
+    """ground_height places the sky's ground at z = height (the clouds shade it: renderer.ground); the sky itself
+    is unchanged, and without the key the scene has no ground."""
+    assert load(tmp_path, background="sky").ground is None
+    assert load(tmp_path, background={"sky": {"ground_albedo": 0.3}}).ground is None
+    s = load(tmp_path, background={"sky": {"ground_height": -0.5, "ground_albedo": 0.3}})
+    np.testing.assert_array_equal(s.sky, load(tmp_path, background={"sky": {"ground_albedo": 0.3}}).sky)
+    assert s.ground.height == -0.5
+    np.testing.assert_allclose(s.ground.direction, s.lights[0].direction, atol=1e-15)
+    np.testing.assert_allclose(s.ground.sun, 16.0 * atm.ground_sun_table(30.0, ground_albedo=0.3), rtol=1e-15)
+    assert not s.ground.sun.flags.writeable
+    s = load(tmp_path, background={"sky": {"elevation": 20, "azimuth": 180, "ground_height": 1.0}}, lights=None)
+    np.testing.assert_allclose(s.ground.direction, [0.0, -np.cos(np.radians(20)), np.sin(np.radians(20))], atol=1e-15)
+
+
 @pytest.mark.parametrize("changes,where,fragment", [
+    (dict(background={"sky": {"ground_height": 2.0}}), "background.sky.ground_height", "below the camera's height"),
+    (dict(background={"sky": {"ground_height": 5}}), "background.sky.ground_height", "(its z, 2)"),
+    (dict(background={"sky": {"ground_height": "low"}}), "background.sky.ground_height", "a number below"),
+    (dict(background={"sky": {"elevation": 30, "ground_height": [0]}}), "background.sky.ground_height", "below"),
     (dict(background={"sky": {"ground_albedo": [0.1, 1.5, 0.1]}}), "background.sky.ground_albedo", "[r, g, b]"),
     (dict(background={"sky": {"ground_albedo": [0.1, 0.1]}}), "background.sky.ground_albedo", "[r, g, b]"),
     (dict(background={"sky": {"ground_albedo": "green"}}), "background.sky.ground_albedo", "[r, g, b]"),

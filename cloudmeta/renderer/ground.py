@@ -1,0 +1,77 @@
+"""The clouds' shadow on the sky's ground (docs/atmosphere.md, *The clouds' shadow on the ground*).
+
+The sky's ground is part of the background, a radiance over the view elevation alone. A scene that places it
+(``background: {sky: {ground_height: Z}}``, scene.model.Ground) has it on the plane z = Z. Where a camera ray
+goes down it meets that plane at g, and the media and surfaces between g and the sun take their share of the
+sun's light: the background seen there is L_sky(e) - L_sun(e) (1 - T_sun(g)), with L_sun the part of the
+sky's ground that the sun lights directly (atmosphere.ground_sun_table) and T_sun(g) the exact transmittance
+from g towards the sun (0 where a surface is in the way). ``ground_shadow`` is that loss per pixel, the mean
+over a fixed SUBPIXELS x SUBPIXELS grid of points in the pixel, so that the shadow's edge is antialiased at
+any spp. Every pixel's value depends on the pixel alone: a tile gives the frame's pixels, bit for bit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..kernels.batch import first_hits, trace_rays
+from ..kernels.kinds import DENSITY_MODES
+from ..kernels.records import BVH, BlobRecord, Rays, TraceOut
+from .pack import background_along
+from .threads import n_chunks
+
+#: ground points per pixel side
+SUBPIXELS = 2
+
+
+def _blob_args(blob):
+    """A scene blob as kernels.batch reads it: its BlobRecord and its BVH (root node 0)."""
+    return (BlobRecord(blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, blob.threshold),
+            BVH(*blob.bvh, np.zeros(1, np.int64)))
+
+
+def sun_transmittance(scene, points, tol_t):
+    """(n,) the exact transmittance from ``points`` (n, 3) towards the scene's ground's sun through every
+    medium; 0 where a surface is in the way."""
+    n = len(points)
+    direction = np.broadcast_to(np.asarray(scene.ground.direction, np.float64), (n, 3))
+    rays = Rays(np.ascontiguousarray(points), np.ascontiguousarray(direction), np.full(n, np.inf))
+    tau = np.zeros(n)
+    out = TraceOut(np.empty(n), np.empty(n, np.int64), np.empty((n, 1)), np.empty(n, np.int64), np.empty((n, 1, 2)))
+    for medium in scene.media:
+        trace_rays(rays, *_blob_args(medium.blob), tol_t, DENSITY_MODES[medium.density.mode],
+                   float(medium.density.scale), n_chunks(n), out)
+        tau += out.tau
+    transmittance = np.exp(-tau)
+    hit = np.empty(n)
+    for surface in scene.surfaces:
+        first_hits(rays, *_blob_args(surface.blob), tol_t, n_chunks(n), hit)
+        transmittance[np.isfinite(hit)] = 0.0
+    return transmittance
+
+
+def ground_shadow(scene, camera, tol_t, window):
+    """H x W x 3 over the tile ``window`` = ((r0, r1), (c0, c1)) of a records.Camera: the radiance the clouds'
+    shadow takes from the background each pixel sees (0 where its rays do not reach the ground); None where the
+    scene places no ground. The pixel's background seen through the media loses this times the view's
+    transmittance (renderer.frame)."""
+    ground = scene.ground
+    if ground is None:
+        return None
+    (r0, r1), (c0, c1) = window
+    h, w = r1 - r0, c1 - c0
+    sub = (np.arange(SUBPIXELS) + 0.5) / SUBPIXELS
+    rows, cols, v, u = np.meshgrid(np.arange(r0, r1), np.arange(c0, c1), sub, sub, indexing="ij")
+    x = 2.0 * (cols + u) / camera.width - 1.0
+    y = 1.0 - 2.0 * (rows + v) / camera.height
+    d = camera.forward + x[..., None] * camera.right + y[..., None] * camera.up
+    d = (d / np.linalg.norm(d, axis=-1, keepdims=True)).reshape(-1, 3)
+    loss = np.zeros((len(d), 3))
+    down = np.flatnonzero(d[:, 2] < 0.0)
+    if len(down):
+        o = np.asarray(camera.position, np.float64)
+        t = (ground.height - o[2]) / d[down, 2]  # > 0: the loader keeps the ground below the camera
+        points = o + t[:, None] * d[down]
+        shade = 1.0 - sun_transmittance(scene, points, tol_t)
+        lit = np.flatnonzero(shade > 0.0)
+        loss[down[lit]] = background_along(ground.sun, d[down[lit]]) * shade[lit, None]
+    return loss.reshape(h, w, SUBPIXELS * SUBPIXELS, 3).mean(axis=2)
