@@ -28,7 +28,7 @@ _MEDIUM = """
 _SCENE = """
 image: {{width: 4, height: 3}}
 camera: {{position: [0, -6, 0], look_at: [0, 0, 0], up: [0, 0, 1], fov: 40}}
-background: [0.3, 0.4, 0.6]
+background: {{sky: {{elevation: 40, azimuth: 200, ground_height: -4}}}}
 lights:
   - {{type: directional, direction: [0.3, -0.5, 0.8], irradiance: 3.0}}
   - {{type: point, position: [2, -2, 2], intensity: 5.0}}

@@ -157,6 +157,9 @@ NodeWork = namedtuple("NodeWork", ["light", "pos", "l_dir", "x", "normal", "x_of
 #: candidate list and walk stack, NodeWork
 RayWork = namedtuple("RayWork", ["scratch", "pieces", "cand", "stack", "nodes"])
 
+#: what a shadow ray alone reuses (kernels.ground): the BVH's candidate list and walk stack
+ShadowWork = namedtuple("ShadowWork", ["cand", "stack"])
+
 #: the in-scattering quadrature's state along one camera ray (kernels.single.step_in_scattering): the
 #: cursor of the last node (interval k, its point s_prev, the view optical depth u_prev there), the
 #: largest J (r + g + b) met on the ray so far (the scale of the tolerance), and the sweep scratch (which a

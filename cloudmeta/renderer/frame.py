@@ -129,7 +129,7 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         packed = packed._replace(records=without_maps(scene, packed.records))
     target = settings.error
     # the clouds' shadow on a ground the scene places (renderer.ground): what it takes from the background
-    packed = packed._replace(ground=ground_shadow(scene, packed.camera, packed.quadrature.tol_t, window))
+    packed = packed._replace(ground=ground_shadow(scene, packed.records, packed.camera, packed.quadrature.tol_t, window))
 
     def single(packed_q):  # the deterministic image, its background shaded where the ground is in shadow
         image, nearest, counts = render_single(scene, packed_q, window, progress)

@@ -11,11 +11,12 @@ any spp. Every pixel's value depends on the pixel alone: a tile gives the frame'
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
 import numpy as np
 
-from ..kernels.batch import first_hits, trace_rays
-from ..kernels.kinds import DENSITY_MODES
-from ..kernels.records import BVH, BlobRecord, Rays, TraceOut
+from ..kernels.ground import sun_transmittance_chunk
 from .pack import background_along
 from .threads import n_chunks
 
@@ -23,37 +24,28 @@ from .threads import n_chunks
 SUBPIXELS = 2
 
 
-def _blob_args(blob):
-    """A scene blob as kernels.batch reads it: its BlobRecord and its BVH (root node 0)."""
-    return (BlobRecord(blob.centers, blob.frames, blob.weights, blob.kernel_id, blob.blobbiness, blob.threshold),
-            BVH(*blob.bvh, np.zeros(1, np.int64)))
+def sun_transmittance(records, direction, points, tol_t):
+    """(n,) the exact transmittance from ``points`` (n, 3) along the unit ``direction`` through the media of
+    ``records`` (a records.SceneRecords); 0 where one of its surfaces is in the way (kernels.ground)."""
+    points = np.ascontiguousarray(points, np.float64)
+    direction = np.ascontiguousarray(direction, np.float64)
+    out = np.empty(len(points))
+    chunks = n_chunks(len(points))
+    media, surfaces = records.media, records.surfaces
+
+    def chunk(ch):
+        sun_transmittance_chunk(points, direction, media, surfaces, tol_t, np.int64(ch), np.int64(chunks), out)
+
+    with ThreadPoolExecutor(numba.get_num_threads()) as pool:  # nogil chunks, each its own points
+        list(pool.map(chunk, range(chunks)))
+    return out
 
 
-def sun_transmittance(scene, points, tol_t):
-    """(n,) the exact transmittance from ``points`` (n, 3) towards the scene's ground's sun through every
-    medium; 0 where a surface is in the way."""
-    n = len(points)
-    direction = np.broadcast_to(np.asarray(scene.ground.direction, np.float64), (n, 3))
-    rays = Rays(np.ascontiguousarray(points), np.ascontiguousarray(direction), np.full(n, np.inf))
-    tau = np.zeros(n)
-    out = TraceOut(np.empty(n), np.empty(n, np.int64), np.empty((n, 1)), np.empty(n, np.int64), np.empty((n, 1, 2)))
-    for medium in scene.media:
-        trace_rays(rays, *_blob_args(medium.blob), tol_t, DENSITY_MODES[medium.density.mode],
-                   float(medium.density.scale), n_chunks(n), out)
-        tau += out.tau
-    transmittance = np.exp(-tau)
-    hit = np.empty(n)
-    for surface in scene.surfaces:
-        first_hits(rays, *_blob_args(surface.blob), tol_t, n_chunks(n), hit)
-        transmittance[np.isfinite(hit)] = 0.0
-    return transmittance
-
-
-def ground_shadow(scene, camera, tol_t, window):
-    """H x W x 3 over the tile ``window`` = ((r0, r1), (c0, c1)) of a records.Camera: the radiance the clouds'
-    shadow takes from the background each pixel sees (0 where its rays do not reach the ground); None where the
-    scene places no ground. The pixel's background seen through the media loses this times the view's
-    transmittance (renderer.frame)."""
+def ground_shadow(scene, records, camera, tol_t, window):
+    """H x W x 3 over the tile ``window`` = ((r0, r1), (c0, c1)) of a records.Camera: the radiance the shadow
+    of the media and surfaces of ``records`` (records.SceneRecords) takes from the background each pixel sees
+    (0 where its rays do not reach the ground); None where the scene places no ground. The pixel's background
+    seen through the media loses this times the view's transmittance (renderer.frame)."""
     ground = scene.ground
     if ground is None:
         return None
@@ -71,7 +63,7 @@ def ground_shadow(scene, camera, tol_t, window):
         o = np.asarray(camera.position, np.float64)
         t = (ground.height - o[2]) / d[down, 2]  # > 0: the loader keeps the ground below the camera
         points = o + t[:, None] * d[down]
-        shade = 1.0 - sun_transmittance(scene, points, tol_t)
+        shade = 1.0 - sun_transmittance(records, ground.direction, points, tol_t)
         lit = np.flatnonzero(shade > 0.0)
         loss[down[lit]] = background_along(ground.sun, d[down[lit]]) * shade[lit, None]
     return loss.reshape(h, w, SUBPIXELS * SUBPIXELS, 3).mean(axis=2)

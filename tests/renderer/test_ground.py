@@ -65,22 +65,22 @@ def test_loss_of_a_uniform_sphere_against_its_chords(tmp_path):
     s = scene(tmp_path, media=[uniform_medium(RADIUS, SIGMA, CENTRE)])
     packed = pack_scene(s, 0)
     window = ((0, 16), (0, 24))
-    loss = ground_shadow(s, packed.camera, packed.quadrature.tol_t, window)
+    loss = ground_shadow(s, packed.records, packed.camera, packed.quadrature.tol_t, window)
     expected = naive_loss(s, sphere_transmittance)
     assert np.count_nonzero(expected[..., 1]) > 10 and np.count_nonzero(expected[..., 1] == 0) > 10  # in and out
     np.testing.assert_allclose(loss, expected, rtol=1e-9, atol=1e-12 * expected.max())
     # the frame's pixels alone: any tile gives them bit for bit
-    np.testing.assert_array_equal(ground_shadow(s, packed.camera, packed.quadrature.tol_t, ((3, 11), (5, 19))),
-                                  loss[3:11, 5:19])
+    tile = ground_shadow(s, packed.records, packed.camera, packed.quadrature.tol_t, ((3, 11), (5, 19)))
+    np.testing.assert_array_equal(tile, loss[3:11, 5:19])
     assert ground_shadow(scene(tmp_path, ground=None, media=[uniform_medium(RADIUS, SIGMA, CENTRE)]),
-                         packed.camera, packed.quadrature.tol_t, window) is None
+                         packed.records, packed.camera, packed.quadrature.tol_t, window) is None
 
 
 def test_a_surface_casts_a_full_shadow(tmp_path):
     medium = uniform_medium(0.2, 0.5, (4.0, 6.0, 0.5))  # far off the shadow: the scene needs no medium but has one
     s = scene(tmp_path, media=[medium], surfaces=[sphere_surface(RADIUS, CENTRE)])
     packed = pack_scene(s, 0)
-    loss = ground_shadow(s, packed.camera, packed.quadrature.tol_t, ((0, 16), (0, 24)))
+    loss = ground_shadow(s, packed.records, packed.camera, packed.quadrature.tol_t, ((0, 16), (0, 24)))
 
     def blocked(g, light):
         hit = naive.chord_sphere(g, light, CENTRE, RADIUS)
@@ -109,7 +109,7 @@ def test_the_render_shades_the_background_it_sees(tmp_path, scattering):
     image = render(placed, progress=False)
     plain = render(bare, progress=False)
     packed = pack_scene(placed, 0)
-    loss = ground_shadow(placed, packed.camera, packed.quadrature.tol_t, ((0, 16), (0, 24)))
+    loss = ground_shadow(placed, packed.records, packed.camera, packed.quadrature.tol_t, ((0, 16), (0, 24)))
     np.testing.assert_array_equal(image[..., 3], plain[..., 3])
     expected = plain[..., :3].astype(np.float64) - loss * (1.0 - plain[..., 3:4].astype(np.float64))
     np.testing.assert_allclose(image[..., :3], expected, rtol=0, atol=4e-7 * float(plain[..., :3].max()))  # float32 twice
