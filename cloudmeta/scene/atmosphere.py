@@ -322,24 +322,18 @@ def ground_sun_xyz(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, groun
     return out
 
 
-@functools.lru_cache(maxsize=64)
-def _ground_sun_table(sun_elevation_deg, aerosol_depth, colourspace, ground_albedo):
-    table = _rgb(ground_sun_xyz(sun_elevation_deg, aerosol_depth, ground_albedo), colourspace)
-    table.setflags(write=False)
-    return table
-
-
 def ground_sun_table(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, colourspace=DEFAULT_COLOURSPACE,
                      ground_albedo=DEFAULT_GROUND_ALBEDO):
     """(181, 3) read-only linear RGB of ``ground_sun_xyz``, per unit extraterrestrial luminance, as
     ``sky_table`` gives the sky."""
-    return _ground_sun_table(float(sun_elevation_deg), float(aerosol_depth), colourspace,
-                             ground_albedo_of(ground_albedo))
+    return _sky_table(float(sun_elevation_deg), float(aerosol_depth), colourspace, ground_albedo_of(ground_albedo),
+                      ground_sun_xyz)
 
 
 @functools.lru_cache(maxsize=64)
-def _sky_table(sun_elevation_deg, aerosol_depth, colourspace, ground_albedo):
-    table = _rgb(sky_xyz(sun_elevation_deg, aerosol_depth, ground_albedo), colourspace)
+def _sky_table(sun_elevation_deg, aerosol_depth, colourspace, ground_albedo, xyz_of=sky_xyz):
+    """Read-only linear RGB of the table ``xyz_of`` (sky_xyz, or ground_sun_xyz) gives, kept per sun and ground."""
+    table = _rgb(xyz_of(sun_elevation_deg, aerosol_depth, ground_albedo), colourspace)
     table.setflags(write=False)
     return table
 
