@@ -32,7 +32,7 @@ background: {{sky: {{elevation: 40, azimuth: 200, ground_height: -4}}}}
 lights:
   - {{type: directional, direction: [0.3, -0.5, 0.8], irradiance: 3.0}}
   - {{type: point, position: [2, -2, 2], intensity: 5.0}}
-render: {{shadows: {shadows}, shadow_map: 8, scattering: {scattering}, ms_spp: 2, max_order: 3}}
+render: {{shadows: {shadows}, shadow_map: 8, scattering: {scattering}, ms_spp: 2, max_order: 3{extra}}}
 media:{medium}
 {surfaces}
 """
@@ -40,12 +40,15 @@ _SURFACES = """surfaces:
   - color: [0.6, 0.5, 0.4]
     balls: [{center: [0, 0, -3], radii: [6, 6, 1]}]
 """
-#: name -> (shadows, scattering, with surfaces): the kinds of scene that compile their own kernels
+#: name -> (shadows, scattering, with surfaces, more render keys): the kinds of scene that compile their own kernels
 SCENES = {
-    "single scattering, media only": ("exact", "single", False),
-    "single scattering with surfaces and shadow maps": ("map", "single", True),
-    "multiple scattering, media only": ("exact", "multiple", False),
-    "multiple scattering with surfaces": ("exact", "multiple", True),
+    "single scattering, media only": ("exact", "single", False, ""),
+    "single scattering with surfaces and shadow maps": ("map", "single", True, ""),
+    "multiple scattering, media only": ("exact", "multiple", False, ""),
+    "multiple scattering with surfaces": ("exact", "multiple", True, ""),
+    # the grid's photons and lookups (kernels.fluence); a few photons, so that the job's time is the compile's
+    "approximate multiple scattering, grid method": ("exact", "approximate", False,
+                                                     ", method: grid, grid: {{cells: 8, photons: 4096}}"),
 }
 _RENDER = "import cloudmeta as cm; cm.render(cm.load_scene({path!r}), progress=False)"
 _RAYS = """
@@ -58,15 +61,16 @@ p = np.zeros((2, 3)); cm.field(b, p); cm.gradient(b, p); cm.normal(b, p)
 
 
 def jobs(folder):
-    """[(name, python code)]: the vectorised ray API and one job per kind of scene, the longest first (the
-    ray API and the kernel with surfaces and maps share least with the others)."""
+    """[(name, python code)]: the vectorised ray API and one job per kind of scene, in an order that keeps two
+    processes busy (the ray API and the kernel with surfaces and maps share least with the others; the grid's
+    kernels, last, fill the second process while the first compiles multiple scattering with surfaces)."""
     out = [("the ray API (roots, segments, optical depth, first hit, field)", _RAYS)]
-    for i, (name, (shadows, scattering, surfaces)) in enumerate(SCENES.items()):
+    for i, (name, (shadows, scattering, surfaces, extra)) in enumerate(SCENES.items()):
         path = Path(folder) / f"kind{i}.yaml"
-        path.write_text(_SCENE.format(shadows=shadows, scattering=scattering, medium=_MEDIUM,
+        path.write_text(_SCENE.format(shadows=shadows, scattering=scattering, medium=_MEDIUM, extra=extra.format(),
                                       surfaces=_SURFACES if surfaces else ""))
         out.append((name, _RENDER.format(path=str(path))))
-    return [out[0], out[2], out[1], out[4], out[3]]
+    return [out[0], out[2], out[1], out[4], out[3], out[5]]
 
 
 def precompile(n_jobs=2, report=print):

@@ -337,7 +337,7 @@ def test_compile_jobs_cover_both_kinds_of_scene(tmp_path):
     from cloudmeta.renderer.pack import pack_scene
     from cloudmeta.scene import load_scene
     names = [name for name, _ in jobs(tmp_path)]
-    assert len(names) == 5 and names[0].startswith("the ray API")
+    assert len(names) == 6 and names[0].startswith("the ray API")
     kinds = set()
     for path in sorted(tmp_path.glob("kind*.yaml")):
         s = load_scene(path)
@@ -345,7 +345,7 @@ def test_compile_jobs_cover_both_kinds_of_scene(tmp_path):
         records = pack_scene(s, 0).records
         kinds.add((records.surfaces is None, records.lights.maps is None, s.render.scattering))
     assert kinds == {(True, True, "single"), (False, False, "single"), (True, True, "multiple"),
-                     (False, False, "multiple")}
+                     (False, False, "multiple"), (True, True, "approximate")}
 
 
 def test_the_summary_says_what_is_known():
