@@ -119,3 +119,16 @@ def test_the_render_shades_the_background_it_sees(tmp_path, scattering):
     # a tile is the frame's pixels
     tile = render(placed, progress=False, rows=(4, 13), columns=(2, 21))
     np.testing.assert_array_equal(tile, image[4:13, 2:21])
+
+
+def test_the_docs_picture_shows_the_shadow():
+    """docs/ground_shadow.yaml at a thumbnail: the frame is ground, and a patch of it lies in the cloud's shadow
+    (dark wherever the cloud hides the sun entirely), away from the cloud itself."""
+    from pathlib import Path
+    s = load_scene(Path(__file__).resolve().parents[2] / "docs" / "ground_shadow.yaml", width=48, height=30)
+    packed = pack_scene(s, 0)
+    loss = ground_shadow(s, packed.records, packed.camera, packed.quadrature.tol_t, ((0, 30), (0, 48)))
+    image = render(s, progress=False)
+    shaded = loss[..., 1] > 0.5 * background_along(s.ground.sun, np.array([[0.0, 0.0, -1.0]]))[0, 1]
+    assert 10 < np.count_nonzero(shaded) < 0.2 * shaded.size
+    assert np.all(image[shaded, 3] < 0.01)  # the shadow is seen beside the cloud, not through it
