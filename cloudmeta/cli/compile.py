@@ -48,7 +48,7 @@ SCENES = {
     "multiple scattering with surfaces": ("exact", "multiple", True, ""),
     # the grid's photons and lookups (kernels.fluence); a few photons, so that the job's time is the compile's
     "approximate multiple scattering, grid method": ("exact", "approximate", False,
-                                                     ", method: grid, grid: {{cells: 8, photons: 4096}}"),
+                                                     ", method: grid, grid: {cells: 8, photons: 4096}"),
 }
 _RENDER = "import cloudmeta as cm; cm.render(cm.load_scene({path!r}), progress=False)"
 _RAYS = """
@@ -67,7 +67,7 @@ def jobs(folder):
     out = [("the ray API (roots, segments, optical depth, first hit, field)", _RAYS)]
     for i, (name, (shadows, scattering, surfaces, extra)) in enumerate(SCENES.items()):
         path = Path(folder) / f"kind{i}.yaml"
-        path.write_text(_SCENE.format(shadows=shadows, scattering=scattering, medium=_MEDIUM, extra=extra.format(),
+        path.write_text(_SCENE.format(shadows=shadows, scattering=scattering, medium=_MEDIUM, extra=extra,
                                       surfaces=_SURFACES if surfaces else ""))
         out.append((name, _RENDER.format(path=str(path))))
     return [out[0], out[2], out[1], out[4], out[3], out[5]]

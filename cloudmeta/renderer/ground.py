@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from ..kernels.ground import sun_transmittance_chunk
-from .pack import background_along
+from .pack import background_along, pixel_directions
 from .threads import n_chunks
 
 #: ground points per pixel side
@@ -51,12 +51,9 @@ def ground_shadow(scene, records, camera, tol_t, window):
         return None
     (r0, r1), (c0, c1) = window
     h, w = r1 - r0, c1 - c0
-    sub = (np.arange(SUBPIXELS) + 0.5) / SUBPIXELS
-    rows, cols, v, u = np.meshgrid(np.arange(r0, r1), np.arange(c0, c1), sub, sub, indexing="ij")
-    x = 2.0 * (cols + u) / camera.width - 1.0
-    y = 1.0 - 2.0 * (rows + v) / camera.height
-    d = camera.forward + x[..., None] * camera.right + y[..., None] * camera.up
-    d = (d / np.linalg.norm(d, axis=-1, keepdims=True)).reshape(-1, 3)
+    offset = (np.arange(SUBPIXELS) + 0.5) / SUBPIXELS - 0.5  # from the pixel's centre
+    rows, cols, v, u = np.meshgrid(np.arange(r0, r1), np.arange(c0, c1), offset, offset, indexing="ij")
+    d = pixel_directions(camera, (rows + v).ravel(), (cols + u).ravel())
     loss = np.zeros((len(d), 3))
     down = np.flatnonzero(d[:, 2] < 0.0)
     if len(down):
@@ -64,6 +61,6 @@ def ground_shadow(scene, records, camera, tol_t, window):
         t = (ground.height - o[2]) / d[down, 2]  # > 0: the loader keeps the ground below the camera
         points = o + t[:, None] * d[down]
         shade = 1.0 - sun_transmittance(records, ground.direction, points, tol_t)
-        lit = np.flatnonzero(shade > 0.0)
-        loss[down[lit]] = background_along(ground.sun, d[down[lit]]) * shade[lit, None]
+        shaded = np.flatnonzero(shade > 0.0)
+        loss[down[shaded]] = background_along(ground.sun, d[down[shaded]]) * shade[shaded, None]
     return loss.reshape(h, w, SUBPIXELS * SUBPIXELS, 3).mean(axis=2)

@@ -295,7 +295,8 @@ def camera_basis(camera, width, height):
 
 
 def pixel_directions(camera, rows, cols):
-    """(n, 3): the unit directions through the centres of pixels (rows, cols) of a records.Camera."""
+    """(n, 3): the unit directions through the centres of pixels (rows, cols) of a records.Camera (fractional
+    rows and columns: through those points of the pixels, 0.5 past the centre being the next pixel's edge)."""
     x = 2.0 * (cols + 0.5) / camera.width - 1.0
     y = 1.0 - 2.0 * (rows + 0.5) / camera.height
     d = camera.forward[None, :] + x[:, None] * camera.right[None, :] + y[:, None] * camera.up[None, :]

@@ -312,7 +312,7 @@ def ground_sun_xyz(sun_elevation_deg, aerosol_depth=DEFAULT_AEROSOL_DEPTH, groun
     """(181, 3) XYZ, rows as ``sky_xyz``'s: below the horizon the part of the ground's radiance that the sun
     lights directly, albedo / pi sin h E_sun, seen through the air below the observer; 0 above the horizon.
     It is what a cloud's shadow takes from ``sky_xyz``'s ground where the cloud hides the sun entirely
-    (docs/atmosphere.md, *The cloud's shadow on the ground*)."""
+    (docs/atmosphere.md, *The clouds' shadow on the ground*)."""
     s, aerosol_depth = float(sun_elevation_deg), float(aerosol_depth)
     _check(s, aerosol_depth)
     view = np.arange(-90.0, 0.0)
