@@ -40,17 +40,21 @@ _SURFACES = """surfaces:
   - color: [0.6, 0.5, 0.4]
     balls: [{center: [0, 0, -3], radii: [6, 6, 1]}]
 """
-#: name -> (shadows, scattering, with surfaces, more render keys): the kinds of scene that compile their own kernels
+#: name -> (shadows, scattering, with surfaces, more render keys): the kinds of scene that compile their own kernels;
+#: a list of several renders them in turn in one process (the shared method's tails call the paths' vertices,
+#: which the paths' kernel has compiled in that process already: 43 s more there, 93 s in a process of its own)
 SCENES = {
     "single scattering, media only": ("exact", "single", False, ""),
     "single scattering with surfaces and shadow maps": ("map", "single", True, ""),
-    "multiple scattering, media only": ("exact", "multiple", False, ""),
+    "multiple scattering, media only, and the shared method": [
+        ("exact", "multiple", False, ""),
+        ("exact", "approximate", False, ", method: shared, shared: {stride: 2, tails: 4}")],
     "multiple scattering with surfaces": ("exact", "multiple", True, ""),
     # the grid's photons and lookups (kernels.fluence); a few photons, so that the job's time is the compile's
     "approximate multiple scattering, grid method": ("exact", "approximate", False,
                                                      ", method: grid, grid: {cells: 8, photons: 4096}"),
 }
-_RENDER = "import cloudmeta as cm; cm.render(cm.load_scene({path!r}), progress=False)"
+_RENDER = "import cloudmeta as cm\nfor path in {paths!r}: cm.render(cm.load_scene(path), progress=False)"
 _RAYS = """
 import numpy as np, cloudmeta as cm
 b = cm.Blob(centers=[[0, 0, 0], [0.8, 0.2, 0.3]], radii=[1.5, 1.0])
@@ -65,11 +69,14 @@ def jobs(folder):
     processes busy (the ray API and the kernel with surfaces and maps share least with the others; the grid's
     kernels, last, fill the second process while the first compiles multiple scattering with surfaces)."""
     out = [("the ray API (roots, segments, optical depth, first hit, field)", _RAYS)]
-    for i, (name, (shadows, scattering, surfaces, extra)) in enumerate(SCENES.items()):
-        path = Path(folder) / f"kind{i}.yaml"
-        path.write_text(_SCENE.format(shadows=shadows, scattering=scattering, medium=_MEDIUM, extra=extra,
-                                      surfaces=_SURFACES if surfaces else ""))
-        out.append((name, _RENDER.format(path=str(path))))
+    for i, (name, kinds) in enumerate(SCENES.items()):
+        paths = []
+        for k, (shadows, scattering, surfaces, extra) in enumerate(kinds if isinstance(kinds, list) else [kinds]):
+            path = Path(folder) / f"kind{i}_{k}.yaml"
+            path.write_text(_SCENE.format(shadows=shadows, scattering=scattering, medium=_MEDIUM, extra=extra,
+                                          surfaces=_SURFACES if surfaces else ""))
+            paths.append(str(path))
+        out.append((name, _RENDER.format(paths=paths)))
     return [out[0], out[2], out[1], out[4], out[3], out[5]]
 
 

@@ -29,6 +29,7 @@ from ..kernels.lighting import N_COUNTS
 from ..kernels.multiple import render_paths
 from ..kernels.single import render_pixels
 from .pack import background_along, pixel_directions, single_octave
+from .shared import SPLIT, shared_light
 from .tracking import path_settings, paths_grid, paths_volumes
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
@@ -42,13 +43,24 @@ MAX_ERROR_PATHS = 1024
 
 def check_approximate(scene):
     """Refuse what the approximate mode cannot take (one line naming the file and the key)."""
-    if scene.render.method == "grid" and scene.surfaces:
-        raise SceneError(scene.path, "render.method", "grid does not take opaque surfaces (its light paths do not "
-                                                      "meet them); use method: octaves or scattering: multiple")
+    if scene.render.method in ("grid", "shared") and scene.surfaces:
+        raise SceneError(scene.path, "render.method", f"{scene.render.method} does not take opaque surfaces (its "
+                                                      "light paths do not meet them); use method: octaves or "
+                                                      "scattering: multiple")
     if scene.ambient is not None:
         raise SceneError(scene.path, "ambient", "not allowed with render.scattering: approximate (the background "
                                                 "lights the medium as its own ambient term; ambient would count "
                                                 "it twice)")
+
+
+def approximate_light(scene, packed, settings, image, window, seed, progress=False):
+    """What the approximate method adds to the deterministic image ``image`` (the tile ``window``, H x W x 4) after
+    it is rendered: (light, stderr), both H x W x 3, with ``method: shared`` (renderer.shared: stderr is the
+    tails' noise, not the sharing's bias), else None (the octaves and the grid are inside the quadrature)."""
+    if scene.render.method != "shared":
+        return None
+    stride, tails = settings.shared
+    return shared_light(scene, packed, window, image[..., 3], seed, stride, tails, SPLIT, progress=progress)[:2]
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from .denoise import aux_images, denoise_paths, require_denoiser
 from .fluence import with_radiance_grid
 from .ground import ground_shadow
 from .estimate import estimated_rel_rmse, frame_scattered_mean, with_estimate
-from .approximate import approximation_error, check_approximate
+from .approximate import approximate_light, approximation_error, check_approximate
 from .multiple import check_multiple, plan_paths, render_multiple
 from .pack import pack_scene, quadrature, without_maps
 from .calibrate import pilot_quality
@@ -37,17 +37,20 @@ class Estimator:
     paths(scene, seed=, progress=, rows=, columns=, packed=, plan=) -> (mean, stderr), both H x W x 3 (plan: the
     frame's renderer.multiple.PathPlan, or None for render.ms_spp's count); and how its
     approximation's error is measured with ``error=True`` (None: it approximates nothing), called as
-    approximation(scene, image, packed, window, seed=) -> an approximate.ApproximationError."""
+    approximation(scene, image, packed, window, seed=) -> an approximate.ApproximationError; and the light it adds
+    to the deterministic image once that is rendered (None: none), called as light(scene, packed, settings, image,
+    window, seed, progress) -> (light, stderr), both H x W x 3, or None where the scene's method adds nothing there."""
     check: Callable | None = None
     paths: Callable | None = None
     approximation: Callable | None = None
+    light: Callable | None = None
 
 
 #: render.scattering -> its estimator; a new estimator is one entry here and one driver module
 ESTIMATORS = {
     "single": Estimator(),
     "multiple": Estimator(check=check_multiple, paths=render_multiple),
-    "approximate": Estimator(check=check_approximate, approximation=approximation_error),
+    "approximate": Estimator(check=check_approximate, approximation=approximation_error, light=approximate_light),
 }
 assert tuple(ESTIMATORS) == SCATTERING_MODES, "every scattering mode of the scene's vocabulary has an estimator"
 
@@ -155,6 +158,12 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
     else:
         err = None
         image, nearest, counts = single(packed)
+    added = None if estimator.light is None else estimator.light(scene, packed, settings, image, window, seed,
+                                                                         progress)
+    if added is not None:  # the approximate method's own light (renderer.shared), and its noise
+        image[..., :3] += added[0]
+        if err is not None:
+            err = np.sqrt(err * err + added[1] * added[1])
     plan = None
     if estimator.paths is not None:
         if settings.paths_target is not None:  # planned over the whole frame: the same plan for every tile

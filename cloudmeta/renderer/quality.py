@@ -27,6 +27,9 @@ growth          1       1       1       0          the step limits max_tau and m
                                                    (renderer.calibrate.LADDER)
 (grid)          24^3    40^3    56^3    56^3       the grid method's cells and photons
                 2^21    2^23    2^25    2^25       (renderer.fluence; ``render.grid`` overrides)
+(shared)        8       4       2       1          the shared method's stride (at a longer side of 512
+                1024    4096    16384   65536      pixels, scaled with it) and tails per coarsest sample
+                                                   ray (renderer.shared; ``render.shared``)
 (paths)         0.10    0.03    0.01    0.003      multiple scattering: the relative RMSE of the paths'
                                                    part against the scattered light that the planned
                                                    paths aim at (renderer.multiple; ``render.ms_spp``
@@ -61,6 +64,7 @@ seen through less than ``cutoff`` of view transmittance is not shaded (like the 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from ..kernels.fluence import COLLISIONS, FLIGHTS
@@ -81,6 +85,9 @@ class Preset:
     #: the approximate mode's grid method: (cells, as the side of a cube of cells of the media's box's volume;
     #: photons) (renderer.fluence)
     grid: tuple
+    #: the approximate mode's shared method: (stride: pixels between the coarsest sample rays, tails per such ray)
+    #: (renderer.shared)
+    shared: tuple = (8, 1024)
     #: multiple scattering: the relative RMSE of the image's Monte Carlo part, against the frame's scattered
     #: light, that the planned paths aim at (renderer.multiple); None: no plan, ``render.ms_spp`` or its fallback
     paths_target: float | None = None
@@ -96,15 +103,15 @@ class Preset:
 #: default's reached lower error in 2.3 s). ``reference`` has no target: it is neither calibrated nor given a
 #: grid of its own (fine's)
 PRESETS = {
-    "draft": Preset(paths_target=0.10, target=3e-3, start=1.0, grid=(24, 1 << 21), quadrature=dict(
+    "draft": Preset(paths_target=0.10, target=3e-3, start=1.0, grid=(24, 1 << 21), shared=(8, 1024), quadrature=dict(
         tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9, growth=1.0)),
-    "default": Preset(paths_target=0.03, target=1e-3, start=0.0, grid=(40, 1 << 23), quadrature=dict(
+    "default": Preset(paths_target=0.03, target=1e-3, start=0.0, grid=(40, 1 << 23), shared=(4, 4096), quadrature=dict(
         tolerance=1e-3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-4, root_tolerance=1e-9,
         growth=1.0)),
-    "fine": Preset(paths_target=0.01, target=3e-4, start=-1.0, grid=(56, 1 << 25), quadrature=dict(
+    "fine": Preset(paths_target=0.01, target=3e-4, start=-1.0, grid=(56, 1 << 25), shared=(2, 16384), quadrature=dict(
         tolerance=3e-4, max_tau=0.175, max_length=1 / 32, max_angle=0.1, cutoff=1e-5, root_tolerance=1e-9,
         growth=1.0)),
-    "reference": Preset(paths_target=0.003, target=None, start=None, grid=(56, 1 << 25), quadrature=dict(
+    "reference": Preset(paths_target=0.003, target=None, start=None, grid=(56, 1 << 25), shared=(1, 65536), quadrature=dict(
         tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0, root_tolerance=1e-9,
         growth=0.0)),
 }
@@ -151,6 +158,9 @@ class FrameSettings:
     #: the approximate mode's grid method: (cells, photons, deposit: kernels.fluence.FLIGHTS or COLLISIONS), the
     #: preset's where render.grid leaves them out; None in every other mode
     grid: tuple | None = field(default=None)
+    #: the approximate mode's shared method: (stride, tails), the preset's where render.shared leaves them out;
+    #: None in every other mode
+    shared: tuple | None = None
     #: multiple scattering: paths per pixel (render.ms_spp), or None where they are planned to ``paths_target``
     paths: int | None = None
     #: multiple scattering with planned paths: the relative RMSE they aim at (render.error where given, else the
@@ -183,6 +193,17 @@ def preset_quality(name, diagonal, shadows=ShadowMode.EXACT) -> Quality:
     return resolve_quality(RenderSettings(quality=name, shadows=shadows), diagonal)
 
 
+#: the image's longer side at which the shared method's presets take their own stride (renderer.shared)
+SHARED_SIDE = 512
+
+
+def shared_stride(stride, width, height):
+    """The preset's stride at SHARED_SIDE, scaled with the image's longer side to the nearest power of 2 (at least 1):
+    the sharing's bias goes with the angle between sample rays, not with their number of pixels."""
+    scaled = stride * max(width, height) / SHARED_SIDE
+    return int(max(1, 2 ** round(math.log2(scaled))))
+
+
 def resolve_settings(scene) -> FrameSettings:
     """The frame's FrameSettings: every key of ``scene.render`` decided once."""
     r = scene.render
@@ -192,6 +213,11 @@ def resolve_settings(scene) -> FrameSettings:
         cells, photons, deposit = r.grid or (None, None, "flights")
         grid = (int(cells or preset.grid[0]), int(photons or preset.grid[1]),
                 COLLISIONS if deposit == "collisions" else FLIGHTS)
+    shared = None
+    if r.scattering == "approximate" and r.method == "shared":
+        stride, tails = r.shared or (None, None)
+        shared = (int(stride or shared_stride(preset.shared[0], scene.image.width, scene.image.height)),
+                  int(tails or preset.shared[1]))
     calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
                  and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
     paths_target = None
@@ -200,4 +226,4 @@ def resolve_settings(scene) -> FrameSettings:
     return FrameSettings(quality=r.quality, preset=preset, shadows=ShadowMode(r.shadows),
                          shadow_map=int(r.shadow_map or SHADOW_MAP_RESOLUTION),
                          quadrature=resolve_quality(r, scene.length_scale()), calibrate=bool(calibrate),
-                         error=r.error, grid=grid, paths=r.ms_spp, paths_target=paths_target)
+                         error=r.error, grid=grid, shared=shared, paths=r.ms_spp, paths_target=paths_target)

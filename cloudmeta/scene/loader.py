@@ -150,6 +150,7 @@ def _render(top, overrides=None):
         method=n.choice("method", APPROXIMATE_METHODS, "octaves"),
         octaves=_octaves(n),
         grid=_grid(n),
+        shared=_shared(n),
         max_order=n.integer("max_order", 64, **_int_range(1, lim.MAX_ORDER)),
         ms_spp=_ms_spp(n),
         track_from=n.integer("track_from", 2, **_int_range(2, lim.MAX_ORDER + 1)),
@@ -184,6 +185,17 @@ def _grid(render):
     n = render.node("grid", ("cells", "photons", "deposit"), {})
     return (n.integer("cells", None, **_int_range(2, lim.MAX_GRID_CELLS)),
             n.integer("photons", None, **_int_range(1, lim.MAX_PHOTONS)), n.choice("deposit", GRID_DEPOSITS, "flights"))
+
+
+def _shared(render):
+    """render.shared: {stride, tails} (docs/approximate.md), None where absent (the quality preset's); a key left
+    out is None too and takes the preset's value."""
+    if "shared" not in render.data:
+        return None
+    n = render.node("shared", ("stride", "tails"), {})
+    stride = n.integer("stride", None, check=lambda v: 1 <= v <= lim.MAX_SHARED_STRIDE and v & (v - 1) == 0,
+                       expect=f"a power of 2 from 1 to {lim.MAX_SHARED_STRIDE}")
+    return stride, n.integer("tails", None, **_int_range(2, lim.MAX_SHARED_TAILS))
 
 
 EXPOSURE = dict(check=lambda v: abs(v) <= lim.MAX_EXPOSURE,

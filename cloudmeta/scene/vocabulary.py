@@ -52,7 +52,7 @@ HYBRID_SHARE = 0.25
 #: render.scattering: the estimators (renderer.frame.ESTIMATORS)
 SCATTERING_MODES = ("single", "multiple", "approximate")
 #: render.method of the approximate mode (renderer.approximate)
-APPROXIMATE_METHODS = ("octaves", "grid")
+APPROXIMATE_METHODS = ("octaves", "grid", "shared")
 #: render.grid.deposit: where the grid method's photons deposit (docs/approximate.md)
 GRID_DEPOSITS = ("flights", "collisions")
 #: render.octaves when not given: (count, a, b, c), fitted by validation/accuracy/approximate.py on scenes

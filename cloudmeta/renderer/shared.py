@@ -1,0 +1,284 @@
+"""The approximate mode's shared method (``render: {scattering: approximate, method: shared}``, docs/approximate.md):
+the light of orders >= 2 of the lights and >= 1 of the environment, estimated by the unbiased estimator's own
+path tails on sparse camera rays and shared between neighbouring pixels at equal optical depth.
+
+1. **Sample rays** through the centres of the pixels of a lattice of ``stride`` pixels (the frame's border
+   rounded up to whole blocks). On each, at the optical depths TAUS (the first one at most half the ray's
+   depth, so that every ray that meets a medium has a node), tails of the unbiased paths (kernels.shared)
+   estimate Q(tau), the light that the point at depth tau scatters towards the camera, per unit of e^-tau d tau.
+   The tails per node are spread by the node's weight in the integral below.
+2. **Refinement.** A block of the lattice is split into four, and the new sample rays traced, where its corners
+   disagree: some corner misses the media while a pixel of the block meets them (the depth pass: every pixel's
+   centre ray traced, no tails), or the spread of the corners' profiles at equal depth, weighted like the
+   integral, exceeds ``threshold`` times their mean plus twice its noise. Down to blocks of one pixel.
+3. **The gather.** Each pixel takes the profile of the smallest block it lies in, bilinear between its
+   corners at equal tau (corners that do not reach a depth left out, and a depth no corner reaches holds the
+   last value), piecewise linear in tau, and integrates e^-tau Q(tau) exactly up to its own optical depth
+   U = -ln(1 - alpha), from the single-scattering image's alpha (antialiased like the image).
+
+Every decision reads a block's corners and pixels alone, and a sample ray's random numbers are keyed by its
+place in the lattice: any tile and any number of threads give the same pixels. The price is a bias where the
+light changes within a block more than its corners show; ``render.error`` / ``--error`` measure the image's
+error against unbiased pixels (renderer.approximate.approximation_error).
+"""
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+
+from ..kernels.media import n_media
+from ..kernels.shared import NODE_KEYS, depth_tails
+from ..kernels.tracking import alloc_track_work
+from ..kernels.records import PathSettings
+from .threads import progress_bar
+from .tracking import RR_ORDER, majorant_grid, paths_volumes
+
+#: the optical depths of a sample ray's nodes (the first at most half the ray's depth)
+TAUS = np.array([0.02, 0.1, 0.25, 0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0, 9.0])
+assert len(TAUS) <= NODE_KEYS
+#: the optical depth where the gather stops (e^-60: nothing left)
+MAX_DEPTH = 60.0
+#: sample rays per call of the kernel
+CHUNK = 64
+#: the tails' streams are keyed by the render's seed with these bits flipped: the approximation's error estimate
+#: (renderer.approximate) draws its unbiased paths from the render's seed, and must not share a number with them
+TAIL_SEED = 0x5A1D5EED
+#: a block is split where its corners' profiles differ by more than this share of their light (beyond noise)
+SPLIT = 0.25
+
+
+def node_weights(taus=TAUS):
+    """w_a = the integral over [0, inf) of e^-tau times node a's hat function (the first held below it, the last
+    above it): each node's share of a pixel's light where Q is even."""
+    return depth_weights(np.array([np.inf]), taus)[0]
+
+
+def depth_weights(depth, taus=TAUS):
+    """(n, len(taus)): for optical depths depth (n,), the integral over [0, depth] of e^-tau times each node's
+    hat function (piecewise linear through the nodes, constant below the first and above the last)."""
+    u = np.minimum(np.asarray(depth, np.float64), MAX_DEPTH)[:, None]
+    e = lambda x: -np.expm1(-x)  # noqa: E731  (the integral of e^-tau over [0, x])
+    f = lambda x: 1.0 - (1.0 + x) * np.exp(-x)  # noqa: E731  (of tau e^-tau)
+    n = len(taus)
+    w = np.zeros((u.shape[0], n))
+    w[:, 0] += e(np.minimum(u[:, 0], taus[0]))
+    for a in range(n - 1):
+        t0, t1 = taus[a], taus[a + 1]
+        b = np.clip(u[:, 0], t0, t1)
+        a0 = e(b) - e(t0)
+        a1 = f(b) - f(t0)
+        w[:, a] += (t1 * a0 - a1) / (t1 - t0)
+        w[:, a + 1] += (a1 - t0 * a0) / (t1 - t0)
+    w[:, n - 1] += e(np.maximum(u[:, 0], taus[-1])) - e(taus[-1])
+    return w
+
+
+def tails_per_node(tails, taus=TAUS):
+    """About ``tails`` tails in all per sample ray, each node's in proportion to its weight (node_weights), at
+    least 2 (a variance needs two)."""
+    w = node_weights(taus)
+    return np.maximum(np.rint(tails * w / w.sum()), 2).astype(np.int64)
+
+
+class Lattice:
+    """The sample rays computed so far, by lattice point (row, column): their profiles and depths."""
+
+    def __init__(self, scene, packed, seed, max_order):
+        self.scene, self.packed = scene, packed
+        self.camera = packed.camera._replace(spp=1)
+        self.seed = np.int64(seed ^ TAIL_SEED)
+        self.grid = majorant_grid(scene, packed.records.media)
+        base = PathSettings(max_order=int(max_order), rr_order=RR_ORDER, paths=1, track_from=2)
+        self.volumes = paths_volumes(scene, packed, base)
+        self.path_settings = base
+        self.index = {}
+        self.mean = np.zeros((0, len(TAUS), 3))
+        self.var = np.zeros((0, len(TAUS), 3))
+        self.depth = np.zeros(0)
+        self.key_width = scene.image.width + 64 * 1024  # beyond any lattice column
+
+    def trace(self, points, tails, progress=False, desc="tails"):
+        """Trace the sample rays of ``points`` ((n, 2) rows and columns) not traced yet, with tails (per node)."""
+        new = [(int(r), int(c)) for r, c in points if (int(r), int(c)) not in self.index]
+        new = list(dict.fromkeys(new))
+        if not new:
+            return
+        rows = np.array([p[0] for p in new], np.int64)
+        cols = np.array([p[1] for p in new], np.int64)
+        n = len(new)
+        mean = np.empty((n, len(TAUS), 3))
+        var = np.empty((n, len(TAUS), 3))
+        depth = np.empty(n)
+        keys = rows * self.key_width + cols
+        p, rec, quad = self.camera, self.packed.records, self.packed.quadrature
+        n_med = np.int64(n_media(rec.media))
+
+        def run(lo):
+            hi = min(lo + CHUNK, n)
+            depth_tails(p, rec, quad, self.path_settings, self.grid, self.volumes, rows[lo:hi], cols[lo:hi],
+                        keys[lo:hi], TAUS, tails, self.seed, alloc_track_work(n_med), mean[lo:hi], var[lo:hi],
+                        depth[lo:hi])
+            return lo
+        bar = progress_bar(n, progress, unit="ray", desc=desc)
+        with ThreadPoolExecutor(numba.get_num_threads()) as pool:
+            for lo in pool.map(run, range(0, n, CHUNK)):
+                bar.update(min(CHUNK, n - lo))
+        bar.close()
+        base = len(self.depth)
+        for q, point in enumerate(new):
+            self.index[point] = base + q
+        self.mean = np.concatenate([self.mean, mean])
+        self.var = np.concatenate([self.var, var])
+        self.depth = np.concatenate([self.depth, depth])
+
+    def ids(self, rows, cols):
+        return np.array([self.index[(int(r), int(c))] for r, c in zip(rows, cols)], np.int64)
+
+
+def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, max_order=None, progress=False):
+    """(light, stderr, sample rays): the shared method's light (tile_h x tile_w x 3) of the tile ``window`` ((r_lo, r_hi), (c_lo, c_hi)), whose
+    single-scattering alpha is ``alpha`` (tile_h x tile_w): the module docstring's three steps, with sample rays
+    every ``stride`` pixels (a power of 2), about ``tails`` tails per sample ray, blocks split where their
+    corners differ by more than ``threshold`` of their light; stderr: the tails' noise in it, per pixel."""
+    (r_lo, r_hi), (c_lo, c_hi) = window
+    h, w = scene.image.height, scene.image.width
+    s0 = int(stride)
+    max_order = scene.render.max_order if max_order is None else int(max_order)
+    lattice = Lattice(scene, packed, seed, max_order)
+    # the depth pass: which pixels of the level-0 blocks that the tile touches meet a medium
+    br0, br1 = r_lo // s0, (r_hi - 1) // s0 + 1
+    bc0, bc1 = c_lo // s0, (c_hi - 1) // s0 + 1
+    pr0, pr1, pc0, pc1 = br0 * s0, min(br1 * s0, h), bc0 * s0, min(bc1 * s0, w)
+    hits = _pixel_hits(lattice, pr0, pr1, pc0, pc1)
+    box = np.zeros((pr1 - pr0 + 1, pc1 - pc0 + 1), np.int64)  # summed-area table of the hits
+    box[1:, 1:] = np.cumsum(np.cumsum(hits, axis=0), axis=1)
+
+    def any_hit(r0, c0, s):  # per block (arrays): does a pixel of the block meet a medium
+        a0, a1 = r0 - pr0, np.minimum(r0 + s, pr1) - pr0
+        b0, b1 = c0 - pc0, np.minimum(c0 + s, pc1) - pc0
+        return (box[a1, b1] - box[a0, b1] - box[a1, b0] + box[a0, b0]) > 0
+
+    weights = node_weights()
+    br, bc = np.meshgrid(np.arange(br0, br1), np.arange(bc0, bc1), indexing="ij")
+    br, bc = br.ravel(), bc.ravel()
+    refined = []  # per level: the frame's blocks of that level that were split (boolean, by block row and column)
+    s = s0
+    while len(br):
+        corner_r = np.stack([br, br, br + 1, br + 1], 1) * s
+        corner_c = np.stack([bc, bc + 1, bc, bc + 1], 1) * s
+        # a ray of a finer level covers fewer pixels: for the same image noise at the least cost its tails go as
+        # the square root of the pixels it covers (Lagrange), so as the stride
+        lattice.trace(np.stack([corner_r.ravel(), corner_c.ravel()], 1), tails_per_node(tails * s / s0), progress,
+                      f"shared light, every {s} px")
+        split_of = np.zeros((-(-h // s) + 1, -(-w // s) + 1), bool)
+        refined.append(split_of)
+        if s == 1:
+            break
+        ids = lattice.ids(corner_r.ravel(), corner_c.ravel()).reshape(-1, 4)
+        split = _disagree(lattice, ids, weights, threshold) | (
+            np.any(lattice.depth[ids] <= 0.0, axis=1) & any_hit(br * s, bc * s, s))
+        split_of[br[split], bc[split]] = True
+        s //= 2
+        cr = (2 * br[split])[:, None] + np.array([0, 0, 1, 1])
+        cc = (2 * bc[split])[:, None] + np.array([0, 1, 0, 1])
+        cr, cc = cr.ravel(), cc.ravel()
+        keep = (cr * s < min(r_hi, h)) & ((cr + 1) * s > r_lo) & (cc * s < min(c_hi, w)) & ((cc + 1) * s > c_lo)
+        br, bc = cr[keep], cc[keep]
+    light, stderr = _gather(lattice, refined, s0, window, alpha)
+    return light, stderr, len(lattice.depth)
+
+
+def _pixel_hits(lattice, r0, r1, c0, c1):
+    """(r1 - r0, c1 - c0) bool: whether each pixel's centre ray meets a medium (depth_tails without tails)."""
+    rr, cc = np.meshgrid(np.arange(r0, r1), np.arange(c0, c1), indexing="ij")
+    rows, cols = rr.ravel().astype(np.int64), cc.ravel().astype(np.int64)
+    n = len(rows)
+    depth = np.zeros(n)
+    none = np.zeros(len(TAUS), np.int64)
+    mean = np.empty((n, len(TAUS), 3))
+    var = np.empty((n, len(TAUS), 3))
+    p, rec, quad = lattice.camera, lattice.packed.records, lattice.packed.quadrature
+    n_med = np.int64(n_media(rec.media))
+    chunk = 4096
+
+    def run(lo):
+        hi = min(lo + chunk, n)
+        depth_tails(p, rec, quad, lattice.path_settings, lattice.grid, lattice.volumes, rows[lo:hi], cols[lo:hi],
+                    rows[lo:hi], TAUS, none, lattice.seed, alloc_track_work(n_med), mean[lo:hi], var[lo:hi],
+                    depth[lo:hi])
+    with ThreadPoolExecutor(numba.get_num_threads()) as pool:
+        list(pool.map(run, range(0, n, chunk)))
+    return (depth > 0.0).reshape(r1 - r0, c1 - c0)
+
+
+def _disagree(lattice, ids, weights, threshold):
+    """Per block (ids: (n, 4) its corners' sample rays): whether the corners' profiles differ, at the nodes all
+    four reach and weighted like the integral (luminance: the mean of RGB), by more than ``threshold`` (absolute)
+    plus twice that difference's noise."""
+    mean = lattice.mean[ids].mean(axis=3)  # (n, 4, T)
+    valid = np.all(~np.isnan(mean), axis=1)  # (n, T)
+    mean = np.nan_to_num(mean)
+    var = np.nan_to_num(lattice.var[ids].mean(axis=3))
+    spread = np.where(valid, mean.max(axis=1) - mean.min(axis=1), 0.0) @ weights
+    level = np.where(valid, mean.mean(axis=1), 0.0) @ weights
+    noise = np.sqrt(np.where(valid, 2.0 * var.max(axis=1), 0.0) @ (weights * weights))
+    return spread > threshold * level + 2.0 * noise
+
+
+def _gather(lattice, refined, s0, window, alpha, chunk=32768):
+    """Each pixel of the tile: the integral of e^-tau Q up to its depth, Q bilinear between the corners of its
+    smallest block (module docstring)."""
+    (r_lo, r_hi), (c_lo, c_hi) = window
+    out = np.zeros((r_hi - r_lo, c_hi - c_lo, 3))
+    var = np.zeros_like(out)
+    ii, jj = np.nonzero(alpha > 0.0)
+    if len(ii) == 0:
+        return out, var
+    gi, gj = ii + r_lo, jj + c_lo
+    with np.errstate(divide="ignore"):
+        depth = np.minimum(-np.log1p(-np.minimum(alpha[ii, jj].astype(np.float64), 1.0)), MAX_DEPTH)
+    # each pixel's smallest block
+    size = np.full(len(gi), s0)
+    for level, split_of in enumerate(refined):
+        s = s0 >> level
+        deeper = (size == s) & split_of[gi // s, gj // s]
+        size[deeper] = s // 2
+    r0, c0 = (gi // size) * size, (gj // size) * size
+    fr, fc = (gi - r0) / size, (gj - c0) / size
+    corner_r = np.stack([r0, r0, r0 + size, r0 + size], 1)
+    corner_c = np.stack([c0, c0 + size, c0, c0 + size], 1)
+    wts = np.stack([(1 - fr) * (1 - fc), (1 - fr) * fc, fr * (1 - fc), fr * fc], 1)
+    ids = lattice.ids(corner_r.ravel(), corner_c.ravel()).reshape(-1, 4)
+    for lo in range(0, len(gi), chunk):
+        sl = slice(lo, lo + chunk)
+        m = lattice.mean[ids[sl]]  # (n, 4, T, 3)
+        ok = ~np.isnan(m[..., 0])
+        wk = wts[sl][:, :, None] * ok  # (n, 4, T)
+        # a pixel whose weighted corners all miss the media (its centre ray missed, a ray of its footprint did not)
+        # takes its block's corners that meet them, equally
+        lost = ~np.any(wk > 0.0, axis=(1, 2))
+        wk[lost] = 0.25 * ok[lost]
+        den = wk.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            wk = wk / den[:, None, :]
+        prof = _filled(np.einsum("nkt,nktc->ntc", wk, np.where(ok[..., None], m, 0.0)), den > 0)
+        prof_var = _filled(np.einsum("nkt,nktc->ntc", wk * wk, np.where(ok[..., None], lattice.var[ids[sl]], 0.0)),
+                           den > 0)
+        dw = depth_weights(depth[sl])
+        out[ii[sl], jj[sl]] = np.einsum("nt,ntc->nc", dw, prof)
+        var[ii[sl], jj[sl]] = np.einsum("nt,ntc->nc", dw * dw, prof_var)
+    return out, np.sqrt(var)
+
+
+def _filled(prof, valid):
+    """The nodes of each profile (n, T, 3) not ``valid`` (n, T) take the last valid value before them (the first
+    valid one before the first); a profile without any is 0."""
+    t = np.arange(prof.shape[1])
+    last = np.maximum.accumulate(np.where(valid, t, -1), axis=1)
+    first = np.argmax(valid, axis=1)
+    src = np.where(last >= 0, last, first[:, None])
+    out = np.take_along_axis(prof, src[..., None], axis=1)
+    out[~valid.any(axis=1)] = 0.0
+    return out

@@ -1,0 +1,98 @@
+"""The approximate mode's shared method (renderer.shared, docs/approximate.md): the depth weights against
+quadrature, the white furnace exactly, every pixel's own tails against the unbiased estimator, tiles and
+threads bit-identical, the settings validated."""
+import textwrap
+
+import numba
+import numpy as np
+import pytest
+
+from cloudmeta.errors import SceneError
+from cloudmeta.renderer import render, render_frame
+from cloudmeta.renderer.shared import TAUS, depth_weights, node_weights, tails_per_node
+from cloudmeta.scene import load_scene
+from tests.renderer.test_approximate import cloud
+
+
+def test_depth_weights_against_quadrature():
+    """The integral over [0, U] of e^-tau times each node's hat function, closed form, against the trapezoid
+    rule; the hats sum to 1, so the weights sum to 1 - e^-U."""
+    depths = np.array([0.0, 0.01, 0.02, 0.3, 1.0, 4.5, 9.0, 12.0, np.inf])
+    got = depth_weights(depths)
+    for u, row in zip(depths, got):
+        t = np.linspace(0.0, min(u, 60.0), 400001)
+        hats = np.stack([np.interp(t, TAUS, np.eye(len(TAUS))[a]) for a in range(len(TAUS))])
+        np.testing.assert_allclose(row, np.trapezoid(np.exp(-t) * hats, t, axis=1), atol=1e-8)
+        assert row.sum() == pytest.approx(-np.expm1(-min(u, 60.0)), rel=1e-12)
+    np.testing.assert_allclose(node_weights(), got[-1])
+    per = tails_per_node(1000)
+    assert per.min() >= 2 and abs(per.sum() - 1000) <= len(TAUS) and per[0] < per[1]
+
+
+def shared_cloud(tmp_path, shared="{stride: 4, tails: 64}", max_order=16, **kw):
+    return cloud(tmp_path, f"{{quality: draft, scattering: approximate, method: shared, max_order: {max_order}, "
+                 f"shared: {shared}}}", **kw)
+
+
+def test_white_furnace(tmp_path):
+    """Albedo 1, no lights, a uniform environment: every tail sees the environment, so each node's light is
+    the environment and a pixel's is the environment times its alpha; with the background seen through the
+    media, exactly the environment (no path is cut short by max_order)."""
+    s = shared_cloud(tmp_path, lights="[]", albedo=1.0, background="[0.5, 0.7, 1.0]", size=16, max_order=100000)
+    img = render(s, progress=False)
+    assert np.count_nonzero(img[..., 3] > 0.5) > 20
+    np.testing.assert_allclose(img[..., :3], np.broadcast_to([0.5, 0.7, 1.0], img[..., :3].shape), rtol=1e-5)
+
+
+def test_own_tails_against_the_unbiased_estimator(tmp_path):
+    """Stride 1 (every pixel its own sample ray): the only approximation left is Q piecewise linear in the
+    optical depth; the image's multiply scattered light agrees with the unbiased paths' to a few per cent."""
+    from dataclasses import replace
+    s = shared_cloud(tmp_path, "{stride: 1, tails: 2048}", size=10)
+    shared = render(s, progress=False)[..., :3].astype(np.float64)
+    single = render(replace(s, render=replace(s.render, scattering="single")), progress=False).astype(np.float64)
+    multi = render(replace(s, render=replace(s.render, scattering="multiple", ms_spp=2048)), progress=False)
+    ms_shared, ms_paths = (shared - single[..., :3]).sum(), (multi[..., :3] - single[..., :3]).sum()
+    scattered_once = (single[..., :3] - np.array([0.2, 0.3, 0.5]) * (1.0 - single[..., 3:])).sum()
+    assert ms_paths > 0.5 * scattered_once  # the orders above 1 (and the sky's light) matter in this cloud
+    assert ms_shared == pytest.approx(ms_paths, rel=0.03)
+
+
+def test_tiles_and_threads_bit_identical(tmp_path):
+    s = shared_cloud(tmp_path, "{stride: 4, tails: 32}", size=18)
+    frame = render_frame(s, progress=False, error=True)
+    tile = render(s, progress=False, rows=(5, 13), columns=(3, 11))
+    np.testing.assert_array_equal(tile, frame.image[5:13, 3:11])
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = render_frame(s, progress=False, error=True)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(one.image, frame.image)
+    np.testing.assert_array_equal(one.error, frame.error)
+    assert one.approximation == frame.approximation and frame.approximation.rel_rmse > 0.0
+    # the error channels carry the tails' noise: more than the quadrature's alone
+    octaves = render_frame(cloud(tmp_path, "{quality: draft, scattering: approximate, max_order: 16}", size=18),
+                           progress=False, error=True)
+    inside = frame.image[..., 3] > 0.5
+    assert np.mean(frame.error[inside]) > 3.0 * np.mean(octaves.error[inside])
+
+
+def test_settings_are_validated(tmp_path):
+    with pytest.raises(SceneError, match=r"render\.shared\.stride"):
+        shared_cloud(tmp_path, "{stride: 3}")
+    with pytest.raises(SceneError, match=r"render\.shared\.tails"):
+        shared_cloud(tmp_path, "{tails: 1}")
+    with pytest.raises(SceneError, match=r"render\.shared\.paths"):
+        shared_cloud(tmp_path, "{paths: 8}")
+    p = tmp_path / "surf.yaml"
+    p.write_text(textwrap.dedent("""
+        image: {width: 4, height: 4}
+        camera: {position: [0, -9, 0.3], look_at: [0, 0, 0.2]}
+        render: {scattering: approximate, method: shared}
+        media: [{balls: [{center: [0, 0, 0], radius: 1.0}]}]
+        surfaces: [{balls: [{center: [0, 2, 0], radius: 1.0}]}]
+        """))
+    with pytest.raises(SceneError, match=r"render\.method"):
+        render(load_scene(p), progress=False)
