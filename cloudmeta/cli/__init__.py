@@ -110,7 +110,7 @@ def summary(shown, scene, result, took, paths):
         what.append(f"{settings.shadows} shadows")
     what.append(f"quality {settings.quality}")
     target = settings.target
-    if settings.shared is not None:  # the shared method's estimate holds its tails' noise: the preset's target is not its
+    if settings.shared is not None:  # its estimate holds the tails' noise, which the preset's target is not about
         target = None
     # the image's own estimate where one was made (--error, render.error); else the calibration's measure
     error = result.estimated

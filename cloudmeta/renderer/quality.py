@@ -87,7 +87,7 @@ class Preset:
     grid: tuple
     #: the approximate mode's shared method: (stride: pixels between the coarsest sample rays, tails per such ray)
     #: (renderer.shared)
-    shared: tuple = (8, 1024)
+    shared: tuple
     #: multiple scattering: the relative RMSE of the image's Monte Carlo part, against the frame's scattered
     #: light, that the planned paths aim at (renderer.multiple); None: no plan, ``render.ms_spp`` or its fallback
     paths_target: float | None = None
@@ -103,17 +103,18 @@ class Preset:
 #: default's reached lower error in 2.3 s). ``reference`` has no target: it is neither calibrated nor given a
 #: grid of its own (fine's)
 PRESETS = {
-    "draft": Preset(paths_target=0.10, target=3e-3, start=1.0, grid=(24, 1 << 21), shared=(8, 1024), quadrature=dict(
-        tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9, growth=1.0)),
-    "default": Preset(paths_target=0.03, target=1e-3, start=0.0, grid=(40, 1 << 23), shared=(4, 4096), quadrature=dict(
+    "draft": Preset(paths_target=0.10, target=3e-3, start=1.0, grid=(24, 1 << 21), quadrature=dict(
+        tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9, growth=1.0),
+        shared=(8, 1024)),
+    "default": Preset(paths_target=0.03, target=1e-3, start=0.0, grid=(40, 1 << 23), quadrature=dict(
         tolerance=1e-3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-4, root_tolerance=1e-9,
-        growth=1.0)),
-    "fine": Preset(paths_target=0.01, target=3e-4, start=-1.0, grid=(56, 1 << 25), shared=(2, 16384), quadrature=dict(
+        growth=1.0), shared=(4, 4096)),
+    "fine": Preset(paths_target=0.01, target=3e-4, start=-1.0, grid=(56, 1 << 25), quadrature=dict(
         tolerance=3e-4, max_tau=0.175, max_length=1 / 32, max_angle=0.1, cutoff=1e-5, root_tolerance=1e-9,
-        growth=1.0)),
-    "reference": Preset(paths_target=0.003, target=None, start=None, grid=(56, 1 << 25), shared=(1, 65536), quadrature=dict(
+        growth=1.0), shared=(2, 16384)),
+    "reference": Preset(paths_target=0.003, target=None, start=None, grid=(56, 1 << 25), quadrature=dict(
         tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0, root_tolerance=1e-9,
-        growth=0.0)),
+        growth=0.0), shared=(1, 65536)),
 }
 assert tuple(PRESETS) == QUALITIES, "every quality name of the scene's vocabulary has a preset"
 #: the quadrature keys that, given explicitly, turn calibration off (the user chose the settings)

@@ -86,7 +86,7 @@ class Lattice:
     """The sample rays computed so far, by lattice point (row, column): their profiles and depths."""
 
     def __init__(self, scene, packed, seed, max_order):
-        self.scene, self.packed = scene, packed
+        self.packed = packed
         self.camera = packed.camera._replace(spp=1)
         self.seed = np.int64(seed ^ TAIL_SEED)
         self.grid = majorant_grid(scene, packed.records.media)
@@ -138,8 +138,9 @@ class Lattice:
 
 
 def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, max_order=None, progress=False):
-    """(light, stderr, sample rays): the shared method's light (tile_h x tile_w x 3) of the tile ``window`` ((r_lo, r_hi), (c_lo, c_hi)), whose
-    single-scattering alpha is ``alpha`` (tile_h x tile_w): the module docstring's three steps, with sample rays
+    """(light, stderr, sample rays): the shared method's light (tile_h x tile_w x 3) of the tile ``window``
+    ((r_lo, r_hi), (c_lo, c_hi)), whose single-scattering alpha is ``alpha`` (tile_h x tile_w): the module
+    docstring's three steps, with sample rays
     every ``stride`` pixels (a power of 2), about ``tails`` tails per sample ray, blocks split where their
     corners differ by more than ``threshold`` of their light; stderr: the tails' noise in it, per pixel."""
     (r_lo, r_hi), (c_lo, c_hi) = window
@@ -190,23 +191,21 @@ def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, m
     return light, stderr, len(lattice.depth)
 
 
-def _pixel_hits(lattice, r0, r1, c0, c1):
+def _pixel_hits(lattice, r0, r1, c0, c1, chunk=4096):
     """(r1 - r0, c1 - c0) bool: whether each pixel's centre ray meets a medium (depth_tails without tails)."""
     rr, cc = np.meshgrid(np.arange(r0, r1), np.arange(c0, c1), indexing="ij")
     rows, cols = rr.ravel().astype(np.int64), cc.ravel().astype(np.int64)
     n = len(rows)
     depth = np.zeros(n)
     none = np.zeros(len(TAUS), np.int64)
-    mean = np.empty((n, len(TAUS), 3))
-    var = np.empty((n, len(TAUS), 3))
     p, rec, quad = lattice.camera, lattice.packed.records, lattice.packed.quadrature
     n_med = np.int64(n_media(rec.media))
-    chunk = 4096
 
     def run(lo):
         hi = min(lo + chunk, n)
+        unused = np.empty((hi - lo, len(TAUS), 3))  # no tails: the profiles stay NaN
         depth_tails(p, rec, quad, lattice.path_settings, lattice.grid, lattice.volumes, rows[lo:hi], cols[lo:hi],
-                    rows[lo:hi], TAUS, none, lattice.seed, alloc_track_work(n_med), mean[lo:hi], var[lo:hi],
+                    rows[lo:hi], TAUS, none, lattice.seed, alloc_track_work(n_med), unused, unused.copy(),
                     depth[lo:hi])
     with ThreadPoolExecutor(numba.get_num_threads()) as pool:
         list(pool.map(run, range(0, n, chunk)))
