@@ -7,7 +7,13 @@ noise part of it (the error channels' RMS: the tails' noise and the quadrature's
 ``render_frame(error=True)``'s, the estimate included. With ``--check`` the same at 64 wide against the references of
 validation.accuracy.approximate (2,048 paths, their noise subtracted): the true error beside the estimate.
 
+With ``--planned`` the unbiased paths of ``scattering: multiple`` planned to those presets (their own estimate,
+RenderResult.estimated) and the octaves (their measured approximation error) are timed too, and the rows are
+written to validation/results/ms_shared_SIZE.csv with a plot of estimated error against time per scene
+(ms_shared_SIZE.png): estimates, not errors against references, which do not exist at this size.
+
     python -m validation.accuracy.ms_shared [--size 512] [--quality draft default] [--scenes ...] [--check]
+        [--planned draft]
 """
 from __future__ import annotations
 
@@ -16,15 +22,20 @@ import time
 import numpy as np
 
 import cloudmeta as cm
-from validation.accuracy.approximate import REPORT, background_times_t, reference, rel_error, scene_of
-from validation.common import parse, parser, run_main, with_settings
+from validation.accuracy.approximate import FIT, REPORT, background_times_t, reference, rel_error, scene_of
+from validation.common import RESULTS, parse, parser, pyplot, run_main, save_figure, with_settings, write_csv
+
+
+#: the report scenes and the fitting scenes of validation.accuracy.approximate (the latter played no part in choosing
+#: the shared method's settings)
+SCENES = {**REPORT, **FIT}
 
 
 def measure(name, size, quality, seed=1):
     """One scene at one quality, rendered with ``error=True`` (the time includes the estimate): a dict of its time,
     the estimated error (renderer.approximate.approximation_error) and the noise the error channels hold (the
     tails' and the quadrature's), relative to the scattered light."""
-    s = with_settings(scene_of(REPORT[name], size, "approximate", method="shared"), quality=quality)
+    s = with_settings(scene_of(SCENES[name], size, "approximate", method="shared"), quality=quality)
     t0 = time.perf_counter()
     result = cm.render_frame(s, progress=False, seed=seed, error=True)
     seconds = time.perf_counter() - t0
@@ -37,12 +48,60 @@ def measure(name, size, quality, seed=1):
                 est_se=est.stderr, noise=noise, image=image)
 
 
+def measure_other(name, size, how, seed=1):
+    """The planned unbiased paths at a preset (how = "planned draft", ...) or the octaves ("octaves"): their time
+    and estimated error (the plan's estimate; the octaves' measured approximation error, the time including it)."""
+    if how == "octaves":
+        s = with_settings(scene_of(SCENES[name], size, "approximate"), quality="default")
+    else:
+        s = with_settings(scene_of(SCENES[name], size, "multiple"), quality=how.split()[1])
+    t0 = time.perf_counter()
+    result = cm.render_frame(s, progress=False, seed=seed, error=how == "octaves")
+    seconds = time.perf_counter() - t0
+    est = result.approximation.rel_rmse if how == "octaves" else result.estimated
+    w, h = s.image.width, s.image.height
+    return dict(scene=name, size=f"{w}x{h}", quality=how, seconds=seconds, estimated=est, est_se=0.0, noise=np.nan)
+
+
+def plot(rows, out, size):
+    plt = pyplot()
+    names = list(dict.fromkeys(r["scene"] for r in rows))
+    cols = min(3, len(names))
+    fig, axes = plt.subplots(-(-len(names) // cols), cols, figsize=(4 * cols, 3.5 * -(-len(names) // cols)),
+                             sharex=True, sharey=True, squeeze=False)
+    for ax, name in zip(axes.flat, names):
+        mine = [r for r in rows if r["scene"] == name]
+        shared = [r for r in mine if not r["quality"].startswith(("planned", "octaves"))]
+        ax.errorbar([r["seconds"] for r in shared], [r["estimated"] for r in shared],
+                    yerr=[r["est_se"] for r in shared], fmt="o-", label="approximate, shared")
+        planned = [r for r in mine if r["quality"].startswith("planned")]
+        ax.plot([r["seconds"] for r in planned], [r["estimated"] for r in planned], "P-", markersize=9,
+                label="multiple, planned paths")
+        octaves = [r for r in mine if r["quality"] == "octaves"]
+        ax.plot([r["seconds"] for r in octaves], [r["estimated"] for r in octaves], "^", markersize=9,
+                label="approximate, octaves")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(name, fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("render time (s, 2 cores)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("estimated relative RMSE")
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(f"Time against estimated error, {size} px wide (each method's own estimate)")
+    save_figure(fig, out)
+
+
 def main(argv=None):
     ap = parser(__doc__)
-    ap.add_argument("--scenes", nargs="+", default=list(REPORT), choices=list(REPORT))
+    ap.add_argument("--scenes", nargs="+", default=list(REPORT), choices=list(SCENES),
+                    help="the six report scenes by default; the approximate mode's four fitting scenes (FIT) too")
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--quality", nargs="+", default=["draft"])
     ap.add_argument("--check", action="store_true", help="at 64 wide against the converged references")
+    ap.add_argument("--planned", nargs="*", default=[], help="also the planned paths at these presets, the octaves, "
+                    "and a CSV and plot")
     args, _ = parse(ap, argv)
     rows = []
     size = 64 if args.check else args.size
@@ -52,11 +111,19 @@ def main(argv=None):
             line = (f"{name:14s} {r['size']:>8s} {quality:8s} {r['seconds']:7.1f} s"
                     f"  estimated {r['estimated']:.3f} +- {r['est_se']:.3f} (tails' noise {r['noise']:.3f})")
             if args.check:
-                u, se, bt, _ = reference(name, REPORT[name], 64, 2048)
+                u, se, bt, _ = reference(name, SCENES[name], 64, 2048)
                 r["true"] = rel_error(r["image"][..., :3], u, se, bt)
                 line += f"  true {r['true']:.3f}"
             print(line, flush=True)
             rows.append({k: v for k, v in r.items() if k != "image"})
+        for how in (["octaves"] + [f"planned {q}" for q in args.planned]) if args.planned else []:
+            r = measure_other(name, size, how)
+            print(f"{name:14s} {r['size']:>8s} {how:16s} {r['seconds']:7.1f} s  estimated {r['estimated']:.3f}",
+                  flush=True)
+            rows.append(r)
+    if args.planned:
+        write_csv(RESULTS / f"ms_shared_{size}.csv", rows)
+        plot(rows, RESULTS / f"ms_shared_{size}.png", size)
     return dict(rows=rows)
 
 

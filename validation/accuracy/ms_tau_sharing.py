@@ -6,7 +6,9 @@ light of orders >= 2 (and >= 1 of the environment) that x scatters towards the c
 of the unbiased estimator adds after its first vertex (renderer.multiple), started at x instead of at a
 random depth. Each pixel then takes the integral over its own ray of e^-tau Q(tau) d tau up to its own
 optical depth U, Q bilinear between the four neighbouring sample rays at equal tau (those whose U passes
-tau), linear in tau. With stride 1 every pixel has its own ray and only the depths are fixed.
+tau), linear in tau. With stride 1 every pixel has its own ray and only the depths are fixed. The tails are
+the renderer's own (kernels.shared, whose first depth is at most half the ray's); the approximate mode's
+``method: shared`` (renderer.shared) builds this with refinement.
 
 Error as validation.accuracy.approximate.rel_error against its references (64 x 48, 2,048 paths, their
 noise subtracted), with single scattering at ``fine`` added. A prototype: its times are not tuned, the
@@ -26,18 +28,9 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from numba import njit
-
 import cloudmeta as cm
-from cloudmeta.kernels.bvh import misses_root_boxes
-from cloudmeta.kernels.camera import camera_ray
-from cloudmeta.kernels.config import NJIT
-from cloudmeta.kernels.intervals import alloc_ray_work
 from cloudmeta.kernels.media import n_media
-from cloudmeta.kernels.multiple import (DIM_MEDIUM, DIM_ROULETTE, locate_depth, scattering_mix, trace_segment,
-                                        tracked_vertex)
-from cloudmeta.kernels.records import PathKey
-from cloudmeta.kernels.sampling import sample_phase_cos, sobol4, turn, uniform
+from cloudmeta.kernels.shared import depth_tails
 from cloudmeta.kernels.tracking import alloc_track_work
 from cloudmeta.renderer.multiple import _tracked_records
 from cloudmeta.renderer.pack import pack_scene
@@ -49,100 +42,25 @@ from validation.common import parse, parser, run_main, with_settings
 TAUS = np.array([0.02, 0.1, 0.25, 0.5, 0.8, 1.2, 1.8, 2.7, 4.0, 6.0, 9.0])
 
 
-@njit(**NJIT)
-def tau_tails(camera, scene, quad, settings, grid, volumes, rows, cols, taus, K, seed, out, u_out, track):
-    # track (a records.TrackWork) comes from the caller: tracked_vertex inlined into the function that allocated
-    # it lost its copy into at_vertex (every next-event estimate 0); received as an argument, it is right
-    work = alloc_ray_work(scene)
-    camera_work = alloc_ray_work(scene)
-    d = np.empty(3)
-    o = np.empty(3)
-    dd = np.empty(3)
-    d_new = np.empty(3)
-    light = np.empty(3)
-    est = np.empty(3)
-    x0 = np.empty(3)
-    has_env = False
-    for q in range(scene.background.shape[0]):
-        for c in range(3):
-            has_env = has_env or scene.background[q, c] > 0.0
-    max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
-    n_tau = taus.shape[0]
-    for q in range(rows.shape[0]):
-        i, j = rows[q], cols[q]
-        camera_ray(camera, i, j, 0, 1, d)
-        u_out[q] = 0.0
-        for a in range(n_tau):
-            for c in range(3):
-                out[q, a, c] = np.nan
-        if misses_root_boxes(camera.position, d, scene.media.bvh):
-            continue
-        camera_work, n_el, u_total, _ = trace_segment(camera.position, d, scene, tol_t, camera_work)
-        u_out[q] = u_total
-        if n_el == 0:
-            continue
-        rp = camera_work.pieces
-        for a in range(n_tau):
-            if taus[a] >= u_total or K == 0:
-                continue
-            k, s, t = locate_depth(taus[a], n_el, rp)
-            for c in range(3):
-                x0[c] = camera.position[c] + t * d[c]
-            acc0 = 0.0
-            acc1 = 0.0
-            acc2 = 0.0
-            pixel = (i * camera.width + j) * 64 + a  # each depth of each ray its own random stream
-            for path in range(K):
-                key = PathKey(seed, pixel, path)
-                ratio, m = scattering_mix(k, s, rp, scene.media, uniform(seed, pixel, path, 0, DIM_MEDIUM))
-                if ratio <= 0.0:
-                    continue
-                for c in range(3):
-                    o[c] = x0[c]
-                    dd[c] = d[c]
-                    est[c] = 0.0
-                _, u_cos, u_phi, u_lobe = sobol4(seed, pixel, path, 0)
-                weight = ratio
-                weight_1 = ratio
-                for n_vert in range(1, max_order + 1):
-                    ph = scene.media.phase[m]
-                    cos_theta = sample_phase_cos(ph[0], ph[1], ph[2], ph[3], u_lobe, u_cos)
-                    turn(dd, cos_theta, u_phi, d_new)
-                    for c in range(3):
-                        dd[c] = d_new[c]
-                    work, weight, m, u_cos, u_phi, u_lobe, done = tracked_vertex(
-                        o, dd, n_vert, weight, key, scene, grid, volumes, tol_t, has_env, max_order, work, track,
-                        light, est)
-                    if done or weight <= 0.0:
-                        break
-                    if n_vert + 1 >= rr_order:
-                        survive = min(1.0, weight / weight_1)
-                        if uniform(seed, pixel, path, n_vert, DIM_ROULETTE) >= survive:
-                            break
-                        weight /= survive
-                acc0 += est[0]
-                acc1 += est[1]
-                acc2 += est[2]
-            out[q, a, 0] = acc0 / K
-            out[q, a, 1] = acc1 / K
-            out[q, a, 2] = acc2 / K
-
-
-
 def run_tails(packed, settings, grid, volumes, rows, cols, taus, K, seed, threads=2):
+    """(out (n, len(taus), 3): each sample ray's mean tail at each depth, NaN where it does not reach; u (n,): its
+    optical depth), by the renderer's own kernel (kernels.shared.depth_tails, K tails at every depth)."""
     n = len(rows)
     out = np.full((n, len(taus), 3), np.nan)
     u = np.zeros(n)
     parts = np.array_split(np.arange(n), threads * 4)
-    cam, rec, quad = packed.camera, packed.records, packed.quadrature
+    cam, rec, quad = packed.camera._replace(spp=1), packed.records, packed.quadrature
+    tails = np.full(len(taus), K, np.int64)
+    width = np.int64(packed.camera.width)
 
     def go(idx):
         if len(idx) == 0:
             return
-        o = np.full((len(idx), len(taus), 3), np.nan)
+        o = np.empty((len(idx), len(taus), 3))
         uu = np.zeros(len(idx))
-        tau_tails(cam, rec, quad, settings, grid, volumes, rows[idx].astype(np.int64), cols[idx].astype(np.int64),
-                  taus, np.int64(K), np.int64(seed), o, uu, alloc_track_work(np.int64(n_media(rec.media))))
+        r, c = rows[idx].astype(np.int64), cols[idx].astype(np.int64)
+        depth_tails(cam, rec, quad, settings, grid, volumes, r, c, r * width + c, taus, tails, np.int64(seed),
+                    alloc_track_work(np.int64(n_media(rec.media))), o, np.empty_like(o), uu)
         out[idx] = o
         u[idx] = uu
     with ThreadPoolExecutor(threads) as pool:
