@@ -72,7 +72,7 @@ def test_tiles_and_threads_bit_identical(tmp_path):
     np.testing.assert_array_equal(one.image, frame.image)
     np.testing.assert_array_equal(one.error, frame.error)
     assert one.approximation == frame.approximation and frame.approximation.rel_rmse > 0.0
-    # the error channels carry the tails' noise: more than the quadrature's alone
+    # the per-pixel error carries the tails' noise: more than the quadrature's alone
     octaves = render_frame(cloud(tmp_path, "{quality: draft, scattering: approximate, max_order: 16}", size=18),
                            progress=False, error=True)
     inside = frame.image[..., 3] > 0.5
