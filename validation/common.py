@@ -153,6 +153,23 @@ def save_figure(fig, out, dpi=120):
     pyplot().close(fig)
 
 
+def finish_time_error(fig, axes, names, ylabel, title, out):
+    """Finish a grid of per-scene panels of error against time (axes: 2-d, one panel per name, the curves drawn):
+    log axes, the scenes' names, labels, the first panel's legend, the title; then save_figure to ``out``."""
+    for ax, name in zip(axes.flat, names):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(name, fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("render time (s, 2 cores)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel(ylabel)
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(title)
+    save_figure(fig, out)
+
+
 # --- images ---------------------------------------------------------------------------------------------------
 
 def rel_rmse(img, ref, norm=None):

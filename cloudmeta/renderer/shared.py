@@ -29,9 +29,9 @@ import numba
 import numpy as np
 
 from ..kernels.media import n_media
+from ..kernels.records import PathSettings
 from ..kernels.shared import NODE_KEYS, depth_tails
 from ..kernels.tracking import alloc_track_work
-from ..kernels.records import PathSettings
 from .threads import progress_bar
 from .tracking import RR_ORDER, majorant_grid, paths_volumes
 

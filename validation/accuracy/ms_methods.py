@@ -23,7 +23,7 @@ import numpy as np
 
 from cloudmeta.renderer.frame import render_frame
 from validation.accuracy.approximate import REPORT, reference, rel_error, scene_of
-from validation.common import RESULTS, parse, parser, pyplot, run_main, save_figure, with_settings, write_csv
+from validation.common import RESULTS, finish_time_error, parse, parser, pyplot, run_main, with_settings, write_csv
 
 
 def _timed(scene, **kw):
@@ -80,17 +80,8 @@ def plot(rows, out, size):
             r = next((r for r in mine if r["method"] == method), None)
             if r is not None:
                 ax.plot([r["seconds"]], [r["error"]], marker, markersize=9, label=label)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_title(name, fontsize=10)
-        ax.grid(True, which="both", alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("render time (s, 2 cores)")
-    for ax in axes[:, 0]:
-        ax.set_ylabel("relative RMSE (of the scattered light)")
-    axes.flat[0].legend(fontsize=8)
-    fig.suptitle(f"Multiply scattered light: time against error, {size} px wide, against converged references")
-    save_figure(fig, out)
+    finish_time_error(fig, axes, names, "relative RMSE (of the scattered light)",
+                      f"Multiply scattered light: time against error, {size} px wide, against converged references", out)
 
 
 if __name__ == "__main__":

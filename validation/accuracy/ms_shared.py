@@ -23,7 +23,8 @@ import numpy as np
 
 import cloudmeta as cm
 from validation.accuracy.approximate import FIT, REPORT, background_times_t, reference, rel_error, scene_of
-from validation.common import RESULTS, parse, parser, pyplot, run_main, save_figure, with_settings, write_csv
+from validation.common import (RESULTS, finish_time_error, parse, parser, pyplot, run_main, with_settings,
+                               write_csv)
 
 
 #: the report scenes and the fitting scenes of validation.accuracy.approximate (the latter played no part in choosing
@@ -80,17 +81,8 @@ def plot(rows, out, size):
         octaves = [r for r in mine if r["quality"] == "octaves"]
         ax.plot([r["seconds"] for r in octaves], [r["estimated"] for r in octaves], "^", markersize=9,
                 label="approximate, octaves")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_title(name, fontsize=10)
-        ax.grid(True, which="both", alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("render time (s, 2 cores)")
-    for ax in axes[:, 0]:
-        ax.set_ylabel("estimated relative RMSE")
-    axes.flat[0].legend(fontsize=8)
-    fig.suptitle(f"Time against estimated error, {size} px wide (each method's own estimate)")
-    save_figure(fig, out)
+    finish_time_error(fig, axes, names, "estimated relative RMSE",
+                      f"Time against estimated error, {size} px wide (each method's own estimate)", out)
 
 
 def main(argv=None):
