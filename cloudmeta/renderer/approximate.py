@@ -34,6 +34,9 @@ from .tracking import path_settings, paths_grid, paths_volumes
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
 ERROR_PIXELS = 128
+#: the shared method's: its error sits in fewer pixels (a smoothed peak, a noisy block), and the estimate over 128
+#: of them spread 2x between seeds on the bank at 512 wide
+SHARED_ERROR_PIXELS = 512
 ERROR_PATHS = 64
 #: the paths are quadrupled, up to MAX_ERROR_PATHS, while the estimate's standard error is above this share of
 #: it (or it is not above the paths' own noise): a small error needs quieter unbiased pixels to be seen
@@ -83,9 +86,10 @@ def sample_pixels(alpha, n, seed):
     return np.sort(np.random.default_rng([seed, 0xA55]).choice(flat, n, replace=False))
 
 
-def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXELS, paths=ERROR_PATHS):
+def approximation_error(scene, image, packed, window, seed=0, pixels=None, paths=ERROR_PATHS):
     """An ApproximationError of the approximate ``image`` (the tile ``window`` of the frame, H x W x 4)
-    rendered from ``packed``: on a sample of its cloud pixels the unbiased estimate U (single scattering
+    rendered from ``packed``: on a sample of its cloud pixels (``pixels``; None: ERROR_PIXELS, SHARED_ERROR_PIXELS
+    with the shared method) the unbiased estimate U (single scattering
     with exact order 1, plus ``paths`` Monte Carlo paths of the orders above) against A, the image's pixel.
     The paths are quadrupled while the estimate is not resolved (ERROR_PRECISION) and they stay within
     MAX_ERROR_PATHS; the exact part, the paths' grid and maps are computed once.
@@ -94,6 +98,8 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=ERROR_PIXEL
     it is the cloud fraction times the mean over cloud pixels, estimated on the sample, less the paths'
     own variance (their squared standard error, which inflates (A - U)^2 on average by exactly that).
     Divided by the mean scattered radiance: U less the background seen through the media."""
+    if pixels is None:
+        pixels = SHARED_ERROR_PIXELS if scene.render.method == "shared" else ERROR_PIXELS
     (r_lo, r_hi), (c_lo, c_hi) = window
     tile = image[..., 3]
     chosen = sample_pixels(tile, pixels, seed)
