@@ -90,6 +90,8 @@ class Lattice:
         self.camera = packed.camera._replace(spp=1)
         self.seed = np.int64(seed ^ TAIL_SEED)
         self.grid = majorant_grid(scene, packed.records.media)
+        # the tails are tracked from their first flight whatever render.track_from says (it places the unbiased
+        # paths' exact flights), so their grid and light volumes are built here, not by tracking.paths_grid
         base = PathSettings(max_order=int(max_order), rr_order=RR_ORDER, paths=1, track_from=2)
         self.volumes = paths_volumes(scene, packed, base)
         self.path_settings = base
@@ -137,7 +139,7 @@ class Lattice:
         return np.array([self.index[(int(r), int(c))] for r, c in zip(rows, cols)], np.int64)
 
 
-def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, max_order=None, progress=False):
+def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, progress=False):
     """(light, stderr, sample rays): the shared method's light (tile_h x tile_w x 3) of the tile ``window``
     ((r_lo, r_hi), (c_lo, c_hi)), whose single-scattering alpha is ``alpha`` (tile_h x tile_w): the module
     docstring's three steps, with sample rays
@@ -146,8 +148,7 @@ def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, m
     (r_lo, r_hi), (c_lo, c_hi) = window
     h, w = scene.image.height, scene.image.width
     s0 = int(stride)
-    max_order = scene.render.max_order if max_order is None else int(max_order)
-    lattice = Lattice(scene, packed, seed, max_order)
+    lattice = Lattice(scene, packed, seed, scene.render.max_order)
     # the depth pass: which pixels of the level-0 blocks that the tile touches meet a medium
     br0, br1 = r_lo // s0, (r_hi - 1) // s0 + 1
     bc0, bc1 = c_lo // s0, (c_hi - 1) // s0 + 1
