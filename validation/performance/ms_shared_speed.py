@@ -1,0 +1,47 @@
+"""The shared method against the planned unbiased paths at equal preset, timed side by side.
+
+Per scene of validation.accuracy.approximate's report (512 wide unless --size), ``render_frame`` (seed 1, no
+error estimate) of the approximate mode's ``method: shared`` and of ``scattering: multiple`` with paths planned
+to the same ``--quality``, alternated (validation.common.alternate: one untimed round, then ``--repeats``);
+prints each one's median and range of wall time.
+
+    python -m validation.performance.ms_shared_speed [--scenes deck_low_sun wispy_puffs] [--repeats 2]
+"""
+from __future__ import annotations
+
+import time
+
+import cloudmeta as cm
+from validation.accuracy.approximate import REPORT, scene_of
+from validation.common import alternate, parse, parser, run_main, with_settings
+
+
+def _run(scene):
+    t0 = time.perf_counter()
+    cm.render_frame(scene, progress=False, seed=1)
+    return time.perf_counter() - t0
+
+
+def main(argv=None):
+    ap = parser(__doc__)
+    ap.add_argument("--scenes", nargs="+", default=["deck_low_sun", "wispy_puffs"], choices=list(REPORT))
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--quality", default="draft")
+    ap.add_argument("--repeats", type=int, default=2)
+    args, _ = parse(ap, argv)
+    rows = []
+    for name in args.scenes:
+        shared = with_settings(scene_of(REPORT[name], args.size, "approximate", method="shared"), quality=args.quality)
+        paths = with_settings(scene_of(REPORT[name], args.size, "multiple"), quality=args.quality)
+        times = alternate({"shared": (shared,), "planned paths": (paths,)}, args.repeats, _run)
+        for key, ts in times.items():
+            ts = sorted(ts)
+            median = ts[len(ts) // 2] if len(ts) % 2 else 0.5 * (ts[len(ts) // 2 - 1] + ts[len(ts) // 2])
+            print(f"{name:14s} {key:14s} median {median:7.1f} s  (range {ts[0]:.1f}-{ts[-1]:.1f} s, {len(ts)} runs)",
+                  flush=True)
+            rows.append(dict(scene=name, method=key, median=median, low=ts[0], high=ts[-1]))
+    return dict(rows=rows)
+
+
+if __name__ == "__main__":
+    run_main(main)
