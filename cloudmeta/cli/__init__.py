@@ -123,7 +123,10 @@ def summary(shown, scene, result, took, paths):
         told.append(f"target error {target:.1e} (not estimated; --error estimates it)")
     if result.approximation is not None:
         a = result.approximation
-        told.append(f"approximation error {a.rel_rmse:.3f} +- {a.stderr:.3f} against multiple scattering")
+        aim = ""
+        if settings.shared is not None and settings.shared[1] is None:  # planned tails: the preset's promise
+            aim = f" (target {settings.shared[2]:g})"
+        told.append(f"approximation error {a.rel_rmse:.3f} +- {a.stderr:.3f} against multiple scattering{aim}")
     return f"cloudmeta: {shown} {', '.join(what)}: {', '.join(told)}; wrote {', '.join(paths)}"
 
 
@@ -138,7 +141,11 @@ def _details(verbose, result):
                  "per pixel in the EXR's channels error.R/G/B")
         verbose(f"estimated relative RMSE {result.estimated:.2e} (target of {target}; {where})")
     plan = getattr(result, "plan", None)
-    if plan is not None:
+    if plan is not None and hasattr(plan, "tails"):
+        verbose(f"shared light's tails planned to {plan.target:g}: {plan.tails} per coarsest sample ray, predicted "
+                f"noise {plan.predicted:.2e} of the scattered light (the sharing's bias beside it; "
+                "docs/approximate.md)")
+    elif plan is not None:
         h, w = result.image.shape[:2]
         verbose(f"multiple-scattering paths planned to {plan.target:g}: {plan.mean_paths(h, w):.0f} per pixel on "
                 f"average, {int(plan.paths.max())} in the busiest 16 x 16 block, predicted {plan.predicted:.2e} "

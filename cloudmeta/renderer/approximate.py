@@ -28,8 +28,9 @@ from ..errors import SceneError
 from ..kernels.lighting import N_COUNTS
 from ..kernels.multiple import render_paths
 from ..kernels.single import render_pixels
+from ..scene.limits import MAX_SHARED_TAILS
 from .pack import background_along, pixel_directions, single_octave
-from .shared import SPLIT, shared_light
+from .shared import SPLIT, plan_tails, shared_light
 from .tracking import path_settings, paths_grid, paths_volumes
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
@@ -56,14 +57,22 @@ def check_approximate(scene):
                                                 "it twice)")
 
 
-def approximate_light(scene, packed, settings, image, window, seed, progress=False):
+def approximate_light(scene, packed, settings, image, window, seed, progress=False, single_mean=0.0):
     """What the approximate method adds to the deterministic image ``image`` (the tile ``window``, H x W x 4) after
-    it is rendered: (light, stderr), both H x W x 3, with ``method: shared`` (renderer.shared: stderr is the
-    tails' noise, not the sharing's bias), else None (the octaves and the grid are inside the quadrature)."""
+    it is rendered: (light, stderr, plan), light and stderr H x W x 3, with ``method: shared`` (renderer.shared:
+    stderr is the tails' noise, not the sharing's bias; plan a shared.TailPlan where the tails were planned
+    against ``single_mean``, the frame pilot's mean single-scattered radiance, else None), else None (the
+    octaves and the grid are inside the quadrature)."""
     if scene.render.method != "shared":
         return None
-    stride, tails = settings.shared
-    return shared_light(scene, packed, window, image[..., 3], seed, stride, tails, SPLIT, progress=progress)[:2]
+    stride, tails, target = settings.shared
+    plan = None
+    if tails is None:
+        plan = plan_tails(scene, packed, stride, target, single_mean, seed, MAX_SHARED_TAILS)
+        tails = plan.tails
+    light, stderr, _ = shared_light(scene, packed, window, image[..., 3], seed, stride, tails, SPLIT,
+                                    progress=progress)
+    return light, stderr, plan
 
 
 @dataclass(frozen=True)

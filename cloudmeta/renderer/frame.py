@@ -39,7 +39,9 @@ class Estimator:
     approximation's error is measured with ``error=True`` (None: it approximates nothing), called as
     approximation(scene, image, packed, window, seed=) -> an approximate.ApproximationError; and the light it adds
     to the deterministic image once that is rendered (None: none), called as light(scene, packed, settings, image,
-    window, seed, progress) -> (light, stderr), both H x W x 3, or None where the scene's method adds nothing there."""
+    window, seed, progress, single_mean=) -> (light, stderr, plan), light and stderr H x W x 3 (single_mean: the
+    pilot's mean single-scattered radiance; plan: what the method planned from it, or None), or None where the
+    scene's method adds nothing there."""
     check: Callable | None = None
     paths: Callable | None = None
     approximation: Callable | None = None
@@ -84,7 +86,8 @@ class RenderResult:
     settings: FrameSettings | None = None
     quality: object | None = None
     #: multiple scattering with planned paths: the renderer.multiple.PathPlan (paths per block, what the pilot
-    #: measured, the relative RMSE it predicted); None otherwise
+    #: measured, the relative RMSE it predicted); the shared method with planned tails: the
+    #: renderer.shared.TailPlan; None otherwise
     plan: object | None = None
 
     def cost(self):
@@ -159,12 +162,13 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
         err = None
         image, nearest, counts = single(packed)
     added = None if estimator.light is None else estimator.light(scene, packed, settings, image, window, seed,
-                                                                         progress)
-    if added is not None:  # the approximate method's own light (renderer.shared), and its noise
+                                                                         progress, single_mean=scattered.mean)
+    plan = tails = None
+    if added is not None:  # the approximate method's own light (renderer.shared), its noise, its planned tails
         image[..., :3] += added[0]
         if err is not None:
             err = np.sqrt(err * err + added[1] * added[1])
-    plan = None
+        tails = added[2]
     if estimator.paths is not None:
         if settings.paths_target is not None:  # planned over the whole frame: the same plan for every tile
             plan = plan_paths(scene, packed, settings.paths_target, scattered.mean, seed, progress)
@@ -194,7 +198,7 @@ def render_frame(scene: Scene, progress=True, seed=0, rows=None, columns=None, e
                         error=None if not error else err.astype(np.float32), approximation=approximation,
                         scattered=scattered, estimated=estimated, counts=counts,
                         raw=None if denoiser is None else raw.astype(np.float32), settings=settings,
-                        quality=quality, plan=plan)
+                        quality=quality, plan=plan if plan is not None else tails)
 
 
 def render(scene: Scene, progress=True, seed=0, depth=False, rows=None, columns=None, error=False, denoise=False):

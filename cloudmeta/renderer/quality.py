@@ -28,11 +28,13 @@ growth          1       1       1       0          the step limits max_tau and m
 (grid)          24^3    40^3    56^3    56^3       the grid method's cells and photons
                 2^21    2^23    2^25    2^25       (renderer.fluence; ``render.grid`` overrides)
 (shared)        8       4       2       1          the shared method's stride (at a longer side of 512
-                1024    4096    16384   65536      pixels, scaled with it) and tails per coarsest sample
-                                                   ray (renderer.shared; ``render.shared``)
+                                                   pixels, scaled with it; renderer.shared;
+                                                   ``render.shared``)
 (paths)         0.10    0.03    0.01    0.003      multiple scattering: the relative RMSE of the paths'
                                                    part against the scattered light that the planned
                                                    paths aim at (renderer.multiple; ``render.ms_spp``
+                                                   gives a fixed count instead), and that the shared
+                                                   method's planned tails aim at (``render.shared.tails``
                                                    gives a fixed count instead)
 =============== ======= ======= ======= ========== ====================================================
 
@@ -85,9 +87,9 @@ class Preset:
     #: the approximate mode's grid method: (cells, as the side of a cube of cells of the media's box's volume;
     #: photons) (renderer.fluence)
     grid: tuple
-    #: the approximate mode's shared method: (stride: pixels between the coarsest sample rays, tails per such ray)
-    #: (renderer.shared)
-    shared: tuple
+    #: the approximate mode's shared method: pixels between the coarsest sample rays at a longer side of
+    #: SHARED_SIDE (renderer.shared; its tails are planned to ``paths_target``)
+    shared: int
     #: multiple scattering: the relative RMSE of the image's Monte Carlo part, against the frame's scattered
     #: light, that the planned paths aim at (renderer.multiple); None: no plan, ``render.ms_spp`` or its fallback
     paths_target: float | None = None
@@ -105,16 +107,16 @@ class Preset:
 PRESETS = {
     "draft": Preset(paths_target=0.10, target=3e-3, start=1.0, grid=(24, 1 << 21), quadrature=dict(
         tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9, growth=1.0),
-        shared=(8, 1024)),
+        shared=8),
     "default": Preset(paths_target=0.03, target=1e-3, start=0.0, grid=(40, 1 << 23), quadrature=dict(
         tolerance=1e-3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-4, root_tolerance=1e-9,
-        growth=1.0), shared=(4, 4096)),
+        growth=1.0), shared=4),
     "fine": Preset(paths_target=0.01, target=3e-4, start=-1.0, grid=(56, 1 << 25), quadrature=dict(
         tolerance=3e-4, max_tau=0.175, max_length=1 / 32, max_angle=0.1, cutoff=1e-5, root_tolerance=1e-9,
-        growth=1.0), shared=(2, 16384)),
+        growth=1.0), shared=2),
     "reference": Preset(paths_target=0.003, target=None, start=None, grid=(56, 1 << 25), quadrature=dict(
         tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0, root_tolerance=1e-9,
-        growth=0.0), shared=(1, 65536)),
+        growth=0.0), shared=1),
 }
 assert tuple(PRESETS) == QUALITIES, "every quality name of the scene's vocabulary has a preset"
 #: the quadrature keys that, given explicitly, turn calibration off (the user chose the settings)
@@ -159,8 +161,9 @@ class FrameSettings:
     #: the approximate mode's grid method: (cells, photons, deposit: kernels.fluence.FLIGHTS or COLLISIONS), the
     #: preset's where render.grid leaves them out; None in every other mode
     grid: tuple | None = field(default=None)
-    #: the approximate mode's shared method: (stride, tails), the preset's where render.shared leaves them out;
-    #: None in every other mode
+    #: the approximate mode's shared method: (stride, tails, target): the preset's stride where render.shared
+    #: leaves it out; render.shared.tails, else None and the tails are planned to the preset's paths target
+    #: (renderer.shared.plan_tails); None in every other mode
     shared: tuple | None = None
     #: multiple scattering: paths per pixel (render.ms_spp), or None where they are planned to ``paths_target``
     paths: int | None = None
@@ -217,8 +220,8 @@ def resolve_settings(scene) -> FrameSettings:
     shared = None
     if r.scattering == "approximate" and r.method == "shared":
         stride, tails = r.shared or (None, None)
-        shared = (int(stride or shared_stride(preset.shared[0], scene.image.width, scene.image.height)),
-                  int(tails or preset.shared[1]))
+        shared = (int(stride or shared_stride(preset.shared, scene.image.width, scene.image.height)),
+                  None if tails is None else int(tails), float(preset.paths_target))
     calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
                  and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
     paths_target = None

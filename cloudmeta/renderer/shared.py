@@ -24,6 +24,7 @@ error against unbiased pixels (renderer.approximate.approximation_error).
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -47,6 +48,56 @@ CHUNK = 64
 TAIL_SEED = 0x5A1D5EED
 #: a block is split where its corners' profiles differ by more than this share of their light (beyond noise)
 SPLIT = 0.25
+#: the planned tails (``plan_tails``; render.shared without ``tails``): a pilot of PILOT_TAILS tails on the sample
+#: rays of every other point of the coarsest lattice, over the whole frame, measures the light of orders >= 2 and
+#: the tails' noise that a pixel takes from the coarsest rays; the tails per coarsest ray are those that bring
+#: the image's noise to NOISE_SHARE of the target (the rest is the sharing's bias: sqrt(1 - 0.7^2) = 0.71 of it),
+#: times REFINED for the finer rays' larger noise (tails in proportion to their stride) and MARGIN^2 for the
+#: pilot's own noise; at least MIN_TAILS
+PILOT_TAILS = 256
+NOISE_SHARE = 0.7
+REFINED = 2.0
+MARGIN = 1.15
+MIN_TAILS = 64
+#: a pixel bilinear between four corners of equal noise keeps on average (2/3)^2 of one corner's variance
+BILINEAR = 4.0 / 9.0
+
+
+@dataclass(frozen=True)
+class TailPlan:
+    """Planned tails (``plan_tails``): ``tails`` per coarsest sample ray, for the image's noise to be
+    NOISE_SHARE of ``target`` relative to the frame's scattered light; what the pilot measured (the frame's mean
+    scattered light, single and shared, the target's denominator) and the relative noise it predicts."""
+    tails: int
+    target: float
+    scattered_mean: float
+    predicted: float
+
+
+def plan_tails(scene, packed, stride, target, single_mean, seed, max_tails) -> TailPlan:
+    """The tails per coarsest sample ray that bring the shared light's noise to NOISE_SHARE of ``target`` relative
+    RMSE against the frame's scattered light (``single_mean``, the pilot's mean single-scattered radiance over
+    pixels and RGB, plus the shared light's mean that this pilot measures), from a pilot on the sample rays every
+    2 ``stride`` pixels of the whole frame: the same plan for every tile."""
+    h, w = scene.image.height, scene.image.width
+    step = 2 * int(stride)
+    rr, cc = np.meshgrid(np.arange(0, h, step), np.arange(0, w, step), indexing="ij")
+    pilot = Lattice(scene, packed, seed, scene.render.max_order)
+    pilot.trace(np.stack([rr.ravel(), cc.ravel()], 1), tails_per_node(PILOT_TAILS))
+    ids = pilot.ids(rr.ravel(), cc.ravel())
+    valid = ~np.isnan(pilot.mean[ids, :, 0])
+    prof = _filled(np.nan_to_num(pilot.mean[ids]), valid)
+    prof_var = _filled(np.nan_to_num(pilot.var[ids]), valid)
+    dw = depth_weights(pilot.depth[ids])
+    light = float(np.einsum("nt,ntc->nc", dw, prof).mean())  # over the frame's pixels (a miss adds 0) and RGB
+    noise2 = BILINEAR * float(np.einsum("nt,ntc->nc", dw * dw, prof_var).mean())  # per pixel and channel
+    norm = float(single_mean) + light
+    if not norm > 0.0 or not noise2 > 0.0:
+        return TailPlan(tails=MIN_TAILS, target=float(target), scattered_mean=max(norm, 0.0), predicted=0.0)
+    need = REFINED * MARGIN * MARGIN * noise2 * PILOT_TAILS / (NOISE_SHARE * target * norm) ** 2
+    tails = int(min(max(np.ceil(need), MIN_TAILS), max_tails))
+    predicted = float(np.sqrt(REFINED * noise2 * PILOT_TAILS / tails)) / norm
+    return TailPlan(tails=tails, target=float(target), scattered_mean=norm, predicted=predicted)
 
 
 def node_weights(taus=TAUS):

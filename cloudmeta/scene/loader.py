@@ -188,8 +188,8 @@ def _grid(render):
 
 
 def _shared(render):
-    """render.shared: {stride, tails} (docs/approximate.md), None where absent (the quality preset's); a key left
-    out is None too and takes the preset's value."""
+    """render.shared: {stride, tails} (docs/approximate.md), None where absent; a key left out is None too: the
+    quality preset's stride, tails planned to the preset's target."""
     if "shared" not in render.data:
         return None
     n = render.node("shared", ("stride", "tails"), {})

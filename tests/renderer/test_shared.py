@@ -9,7 +9,8 @@ import pytest
 
 from cloudmeta.errors import SceneError
 from cloudmeta.renderer import render, render_frame
-from cloudmeta.renderer.shared import TAUS, depth_weights, node_weights, tails_per_node
+from cloudmeta.renderer.shared import (MIN_TAILS, NOISE_SHARE, TAUS, TailPlan, depth_weights, node_weights,
+                                      tails_per_node)
 from cloudmeta.scene import load_scene
 from tests.renderer.test_approximate import cloud
 
@@ -77,6 +78,31 @@ def test_tiles_and_threads_bit_identical(tmp_path):
                            progress=False, error=True)
     inside = frame.image[..., 3] > 0.5
     assert np.mean(frame.error[inside]) > 3.0 * np.mean(octaves.error[inside])
+
+
+def test_planned_tails(tmp_path):
+    """Without render.shared.tails the tails are planned to the preset's target from a pilot over the whole frame:
+    the plan is the frame's in every tile (bit-identical tiles), it scales as 1 / target^2, and the image's noise
+    (the error channels' RMS over the scattered light) comes out near the share of the target it aims at."""
+    from cloudmeta.renderer.pack import pack_scene
+    from cloudmeta.renderer.shared import plan_tails
+    s = shared_cloud(tmp_path, "{stride: 2}", size=24)
+    frame = render_frame(s, progress=False, error=True)
+    plan = frame.plan
+    assert isinstance(plan, TailPlan) and plan.target == 0.10 and plan.tails > MIN_TAILS
+    tile = render(s, progress=False, rows=(7, 19), columns=(2, 13))
+    np.testing.assert_array_equal(tile, frame.image[7:19, 2:13])
+    image = frame.image.astype(np.float64)
+    scattered = (image[..., :3] - np.array([0.2, 0.3, 0.5]) * (1.0 - image[..., 3:])).mean()
+    noise = np.sqrt(np.mean(frame.error.astype(np.float64) ** 2)) / scattered
+    assert 0.3 * NOISE_SHARE * 0.10 < noise < 1.5 * NOISE_SHARE * 0.10
+    assert plan.scattered_mean == pytest.approx(scattered, rel=0.2)
+    packed = pack_scene(s, 0)
+    half = plan_tails(s, packed, 2, 0.05, frame.scattered.mean, 0, 2 ** 24)
+    assert half.tails == pytest.approx(4 * plan.tails, rel=0.01) and half.predicted < plan.predicted
+    assert plan_tails(s, packed, 2, 0.05, frame.scattered.mean, 0, 1000).tails == 1000  # render's limit
+    dark = shared_cloud(tmp_path, "{stride: 2}", size=24, lights="[]", background="[0, 0, 0]")
+    assert plan_tails(dark, pack_scene(dark, 0), 2, 0.1, 0.0, 0, 2 ** 24).tails == MIN_TAILS  # nothing scatters
 
 
 def test_settings_are_validated(tmp_path):

@@ -1,10 +1,10 @@
 """The approximate mode's shared method (docs/approximate.md, "Shared"), measured on the six report scenes.
 
 At ``--size`` (default 512 wide) each scene renders at each ``--quality`` with ``method: shared`` (whole frame,
-both cores, seed 1); its error is the mode's own estimate (renderer.approximate.approximation_error: 128 cloud
-pixels against unbiased paths; no converged reference exists at this size), with the tails'
-noise part of it (the error channels' RMS: the tails' noise and the quadrature's) beside it; the time is
-``render_frame(error=True)``'s, the estimate included. With ``--check`` the same at 64 wide against the references of
+both cores, seed 1; the tails planned to the preset's target); its error is the mode's own estimate
+(renderer.approximate.approximation_error: 512 cloud pixels against unbiased paths; no converged reference exists
+at this size), with the tails' noise part of it (the error channels' RMS: the tails' noise and the quadrature's)
+beside it; the time is ``render_frame(error=True)``'s, the estimate included. With ``--check`` the same at 64 wide against the references of
 validation.accuracy.approximate (2,048 paths, their noise subtracted): the true error beside the estimate.
 
 With ``--planned`` the unbiased paths of ``scattering: multiple`` planned to those presets (their own estimate,
@@ -45,8 +45,9 @@ def measure(name, size, quality, seed=1):
     scattered = float((image[..., :3] - background_times_t(s, image)).mean())
     noise = float(np.sqrt(np.mean(result.error.astype(np.float64) ** 2))) / scattered
     est = result.approximation
+    tails = getattr(result.plan, "tails", None)  # planned (renderer.shared.plan_tails) per coarsest sample ray
     return dict(scene=name, size=f"{w}x{h}", quality=quality, seconds=seconds, estimated=est.rel_rmse,
-                est_se=est.stderr, noise=noise, image=image)
+                est_se=est.stderr, noise=noise, tails=tails, image=image)
 
 
 def measure_other(name, size, how, seed=1):
@@ -61,7 +62,8 @@ def measure_other(name, size, how, seed=1):
     seconds = time.perf_counter() - t0
     est = result.approximation.rel_rmse if how == "octaves" else result.estimated
     w, h = s.image.width, s.image.height
-    return dict(scene=name, size=f"{w}x{h}", quality=how, seconds=seconds, estimated=est, est_se=0.0, noise=np.nan)
+    return dict(scene=name, size=f"{w}x{h}", quality=how, seconds=seconds, estimated=est, est_se=0.0, noise=np.nan,
+                tails=None)
 
 
 def plot(rows, out, size):
@@ -101,7 +103,8 @@ def main(argv=None):
         for quality in args.quality:
             r = measure(name, size, quality)
             line = (f"{name:14s} {r['size']:>8s} {quality:8s} {r['seconds']:7.1f} s"
-                    f"  estimated {r['estimated']:.3f} +- {r['est_se']:.3f} (tails' noise {r['noise']:.3f})")
+                    f"  estimated {r['estimated']:.3f} +- {r['est_se']:.3f} (tails' noise {r['noise']:.3f}, "
+                    f"{r['tails']} tails planned)")
             if args.check:
                 u, se, bt, _ = reference(name, SCENES[name], 64, 2048)
                 r["true"] = rel_error(r["image"][..., :3], u, se, bt)
