@@ -136,9 +136,12 @@ def _details(verbose, result):
     if result.error is not None:
         target = (f"render.error {settings.error:g}" if settings.error is not None else
                   f"quality {settings.quality}: {'none' if settings.target is None else f'{settings.target:g}'}")
-        where = ("the quadrature's alone; the approximation's is the line's 'approximation error', and the EXR "
-                 "has no error channels" if result.approximation is not None else
-                 "per pixel in the EXR's channels error.R/G/B")
+        where = "per pixel in the EXR's channels error.R/G/B"
+        if result.approximation is not None:
+            alone = ("the quadrature's and the shared tails' noise" if settings.shared is not None else
+                     "the quadrature's alone")
+            where = (f"{alone}; the approximation's is the line's 'approximation error', and the EXR has no "
+                     "error channels")
         verbose(f"estimated relative RMSE {result.estimated:.2e} (target of {target}; {where})")
     plan = getattr(result, "plan", None)
     if plan is not None and hasattr(plan, "tails"):

@@ -52,11 +52,13 @@ SPLIT = 0.25
 #: rays of every other point of the coarsest lattice, over the whole frame, measures the light of orders >= 2 and
 #: the tails' noise that a pixel takes from the coarsest rays; the tails per coarsest ray are those that bring
 #: the image's noise to NOISE_SHARE of the target (the rest is the sharing's bias: sqrt(1 - 0.7^2) = 0.71 of it),
-#: times REFINED for the finer rays' larger noise (tails in proportion to their stride) and MARGIN^2 for the
-#: pilot's own noise; at least MIN_TAILS
+#: with MARGIN^2 for the pilot's own noise, at least MIN_TAILS. The finer rays near a silhouette have fewer tails
+#: (in proportion to their stride) and raise the image's variance: by 1 + EDGE_REFINED x the share of the pilot's
+#: variance in its blocks whose corners partly miss the media (fitted on the six report scenes of
+#: docs/approximate.md: 1.2-2.4x measured; on the four fitting scenes it over-predicted by 1.04-1.32x)
 PILOT_TAILS = 256
 NOISE_SHARE = 0.7
-REFINED = 2.0
+EDGE_REFINED = 4.0
 MARGIN = 1.15
 MIN_TAILS = 64
 #: a pixel bilinear between four corners of equal noise keeps on average (2/3)^2 of one corner's variance
@@ -90,14 +92,27 @@ def plan_tails(scene, packed, stride, target, single_mean, seed, max_tails) -> T
     prof_var = _filled(np.nan_to_num(pilot.var[ids]), valid)
     dw = depth_weights(pilot.depth[ids])
     light = float(np.einsum("nt,ntc->nc", dw, prof).mean())  # over the frame's pixels (a miss adds 0) and RGB
-    noise2 = BILINEAR * float(np.einsum("nt,ntc->nc", dw * dw, prof_var).mean())  # per pixel and channel
+    var = np.einsum("nt,ntc->n", dw * dw, prof_var).reshape(rr.shape) / 3.0  # per ray, over RGB
+    noise2 = BILINEAR * float(var.mean())  # per pixel and channel
     norm = float(single_mean) + light
     if not norm > 0.0 or not noise2 > 0.0:
         return TailPlan(tails=MIN_TAILS, target=float(target), scattered_mean=max(norm, 0.0), predicted=0.0)
-    need = REFINED * MARGIN * MARGIN * noise2 * PILOT_TAILS / (NOISE_SHARE * target * norm) ** 2
+    refined = 1.0 + EDGE_REFINED * _edge_share(var, pilot.depth[ids].reshape(rr.shape) > 0.0)
+    need = refined * MARGIN * MARGIN * noise2 * PILOT_TAILS / (NOISE_SHARE * target * norm) ** 2
     tails = int(min(max(np.ceil(need), MIN_TAILS), max_tails))
-    predicted = float(np.sqrt(REFINED * noise2 * PILOT_TAILS / tails)) / norm
+    predicted = float(np.sqrt(refined * noise2 * PILOT_TAILS / tails)) / norm
     return TailPlan(tails=tails, target=float(target), scattered_mean=norm, predicted=predicted)
+
+
+def _edge_share(var, hit):
+    """The share of the variance ``var`` (rows x columns of lattice points) in the blocks between them whose
+    corners partly miss the media (``hit``): where the refinement goes down to single pixels."""
+    corners = [(slice(None, -1), slice(None, -1)), (slice(None, -1), slice(1, None)),
+               (slice(1, None), slice(None, -1)), (slice(1, None), slice(1, None))]
+    block = sum(var[c] for c in corners)
+    hits = sum(hit[c].astype(np.int64) for c in corners)
+    total = float(block.sum())
+    return float(block[(hits > 0) & (hits < 4)].sum()) / total if total > 0.0 else 0.0
 
 
 def node_weights(taus=TAUS):

@@ -105,6 +105,17 @@ def test_planned_tails(tmp_path):
     assert plan_tails(dark, pack_scene(dark, 0), 2, 0.1, 0.0, 0, 2 ** 24).tails == MIN_TAILS  # nothing scatters
 
 
+def test_edge_share():
+    """The plan's share of the pilot's variance in blocks whose corners partly miss the media: by hand on 3 x 3
+    lattice points (four blocks), one corner point missing."""
+    from cloudmeta.renderer.shared import _edge_share
+    var = np.array([[1.0, 2.0, 0.0], [1.0, 1.0, 3.0], [0.0, 1.0, 1.0]])
+    hit = np.array([[True, True, False], [True, True, True], [True, True, True]])
+    blocks = np.array([[5.0, 6.0], [3.0, 6.0]])  # each block's corner variances summed
+    assert _edge_share(var, hit) == pytest.approx(6.0 / blocks.sum())
+    assert _edge_share(var, np.ones((3, 3), bool)) == 0.0 and _edge_share(np.zeros((3, 3)), hit) == 0.0
+
+
 def test_settings_are_validated(tmp_path):
     with pytest.raises(SceneError, match=r"render\.shared\.stride"):
         shared_cloud(tmp_path, "{stride: 3}")
