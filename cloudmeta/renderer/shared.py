@@ -6,7 +6,8 @@ path tails on sparse camera rays and shared between neighbouring pixels at equal
    rounded up to whole blocks). On each, at the optical depths TAUS (the first one at most half the ray's
    depth, so that every ray that meets a medium has a node), tails of the unbiased paths (kernels.shared)
    estimate Q(tau), the light that the point at depth tau scatters towards the camera, per unit of e^-tau d tau.
-   The tails per node are spread by the node's weight in the integral below.
+   The tails per node are spread by the node's weight in the integral below; their number per ray is the
+   caller's, or planned to a target by ``plan_tails`` from a pilot over the whole frame.
 2. **Refinement.** A block of the lattice is split into four, and the new sample rays traced, where its corners
    disagree: some corner misses the media while a pixel of the block meets them (the depth pass: every pixel's
    centre ray traced, no tails), or the spread of the corners' profiles at equal depth, weighted like the
@@ -55,7 +56,7 @@ SPLIT = 0.25
 #: with MARGIN^2 for the pilot's own noise, at least MIN_TAILS. The finer rays near a silhouette have fewer tails
 #: (in proportion to their stride) and raise the image's variance: by 1 + EDGE_REFINED x the share of the pilot's
 #: variance in its blocks whose corners partly miss the media (fitted on the six report scenes of
-#: docs/approximate.md: 1.2-2.4x measured; on the four fitting scenes it over-predicted by 1.04-1.32x)
+#: docs/approximate.md, where it was 1.2-2.4; on the four fitting scenes the noise came out 0.88-1.00 of the plan's)
 PILOT_TAILS = 256
 NOISE_SHARE = 0.7
 EDGE_REFINED = 4.0
