@@ -40,6 +40,17 @@ def camera_ray(camera, i, j, s, strata, d):
 
 
 @njit(**NJIT_INLINE)
+def background_gives_light(background):
+    """Whether the background (a records' (K, 3) table) gives light in any direction: paths must then look for it
+    at every order, not only up to the lights' last."""
+    for q in range(background.shape[0]):
+        for c in range(3):
+            if background[q, c] > 0.0:
+                return True
+    return False
+
+
+@njit(**NJIT_INLINE)
 def background_radiance(background, d):
     """(r, g, b): the radiance of the background seen along the unit direction d. ``background`` is a
     (K, 3) table over the elevation of d (z up), rows from -90 to 90 degrees in equal steps, interpolated

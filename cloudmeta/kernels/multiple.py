@@ -51,7 +51,7 @@ from .metaball import gradient_sum
 from .optics import phase
 from .bvh import bvh_point_candidates, misses_root_boxes
 from .optional import surface_hit, surfaces_blocking
-from .camera import background_radiance, camera_ray
+from .camera import background_radiance, camera_ray, background_gives_light
 from .lighting import light_at_node, light_geometry
 from .intervals import alloc_ray_work, elementary_intervals
 from .borrow import borrow, hold_grown, release
@@ -323,10 +323,7 @@ def ray_paths(o_cam, d_cam, seed, pixel, first, step, camera_segment, scene, qua
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
     track_from = settings.track_from
     map_trust = np.inf if quad.shadow_mode == SHADOWS_MAP else 0.0
-    has_env = False
-    for q in range(scene.background.shape[0]):
-        for c in range(3):
-            has_env = has_env or scene.background[q, c] > 0.0
+    has_env = background_gives_light(scene.background)
     o, d, d_new, light = vectors.o, vectors.d, vectors.d_new, vectors.light
     for path in range(first, settings.paths, step):
         key = PathKey(seed, pixel, path)

@@ -18,7 +18,7 @@ from numba import njit
 
 from .config import NJIT
 from .bvh import misses_root_boxes
-from .camera import camera_ray
+from .camera import camera_ray, background_gives_light
 from .intervals import alloc_ray_work
 from .multiple import DIM_MEDIUM, DIM_ROULETTE, locate_depth, scattering_mix, trace_segment, tracked_vertex
 from .records import PathKey
@@ -49,10 +49,7 @@ def depth_tails(camera, scene, quad, settings, grid, volumes, rows, cols, keys, 
     est = np.empty(3)
     x0 = np.empty(3)
     sums = np.empty(6)  # a node's sums of the tails' estimates and their squares
-    has_env = False
-    for b in range(scene.background.shape[0]):
-        for c in range(3):
-            has_env = has_env or scene.background[b, c] > 0.0
+    has_env = background_gives_light(scene.background)
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
     n_tau = taus.shape[0]
     for q in range(rows.shape[0]):
