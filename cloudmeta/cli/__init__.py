@@ -124,8 +124,8 @@ def summary(shown, scene, result, took, paths):
     if result.approximation is not None:
         a = result.approximation
         aim = ""
-        if settings.shared is not None and settings.shared[1] is None:  # planned tails: the preset's promise
-            aim = f" (target {settings.shared[2]:g})"
+        if settings.shared is not None and settings.shared.tails is None:  # planned tails: the preset's promise
+            aim = f" (target {settings.shared.target:g})"
         told.append(f"approximation error {a.rel_rmse:.3f} +- {a.stderr:.3f} against multiple scattering{aim}")
     return f"cloudmeta: {shown} {', '.join(what)}: {', '.join(told)}; wrote {', '.join(paths)}"
 

@@ -59,12 +59,20 @@ PHOTON_PATH = 1 << 40
 #: collisions, weighted by sigma_s (renderer.fluence then divides by the cells' sigma_s)
 FLIGHTS = 0
 COLLISIONS = 1
+#: or, for the shared method's cache of the deep orders (renderer.shared), the track-length estimates of the
+#: radiance's spherical-harmonic coefficients of degrees 0-3 along the flights, without the camera: coef
+#: (cells, 3, SH_TERMS)
+MOMENTS = 2
+SH_TERMS = 16
+#: the degree of each of the SH_TERMS harmonics (sh_basis)
+SH_DEGREE = (0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3)
 #: a photon vertex's random dimensions (kernels.tracking's flights use theirs, from 1 << 20)
 DIM_ROULETTE = 5
 DIM_MEDIUM = 6
 DIM_LOBE = 7
 DIM_COS = 8
 DIM_PHI = 9
+FOUR_PI = 4.0 * math.pi
 
 
 @njit(**NJIT_INLINE)
@@ -91,6 +99,49 @@ def deposit(o, w, t_max, rg, coef, rgb, med):
                 a = length * deposited_phase(med.phase, rg.peak, m, cos_theta)
                 for col in range(3):
                     coef[c, col, m] += rgb[col] * a
+        t = t_out
+        going, cells = walk_next(rg, cells, t, t_end)
+        if not going:
+            break
+
+
+@njit(**NJIT_INLINE)
+def sh_basis(w, y):
+    """y[:16] = the real spherical harmonics of degrees 0-3 at the unit vector w (orthonormal on the sphere)."""
+    x, yy, z = w[0], w[1], w[2]
+    y[0] = 0.28209479177387814
+    y[1] = 0.4886025119029199 * yy
+    y[2] = 0.4886025119029199 * z
+    y[3] = 0.4886025119029199 * x
+    y[4] = 1.0925484305920792 * x * yy
+    y[5] = 1.0925484305920792 * yy * z
+    y[6] = 0.31539156525252005 * (3.0 * z * z - 1.0)
+    y[7] = 1.0925484305920792 * x * z
+    y[8] = 0.5462742152960396 * (x * x - yy * yy)
+    y[9] = 0.5900435899266435 * yy * (3.0 * x * x - yy * yy)
+    y[10] = 2.890611442640554 * x * yy * z
+    y[11] = 0.4570457994644658 * yy * (5.0 * z * z - 1.0)
+    y[12] = 0.3731763325901154 * z * (5.0 * z * z - 3.0)
+    y[13] = 0.4570457994644658 * x * (5.0 * z * z - 1.0)
+    y[14] = 1.445305721320277 * z * (x * x - yy * yy)
+    y[15] = 0.5900435899266435 * x * (x * x - 3.0 * yy * yy)
+
+
+@njit(**NJIT)
+def deposit_moments(o, w, t_max, rg, coef, rgb, y):
+    """coef[c, col, j] += rgb[col] y[j] times the length of o + t w, t in [0, t_max], inside cell c of the grid rg,
+    for every cell the segment crosses (y: sh_basis of w): per unit volume, the spherical-harmonic coefficients
+    of the radiance the photons carry."""
+    t, t_end, cells = walk_start(o, w, t_max, rg)
+    while t < t_end:
+        c, t_out = walk_cell(rg, cells)
+        t_out = min(t_out, t_end)
+        length = t_out - t
+        if length > 0.0:
+            for col in range(3):
+                a = rgb[col] * length
+                for j in range(SH_TERMS):
+                    coef[c, col, j] += a * y[j]
         t = t_out
         going, cells = walk_next(rg, cells, t, t_end)
         if not going:
@@ -247,7 +298,8 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
     """Photons first .. last - 1 (numbered over all sources, records.PhotonSources.first) deposit into coef
     (cells, 3, media) of the grid rg: every flight that carries scattered light (module docstring) and whose
     light reaches the camera at an order <= max_order, along the flight (where FLIGHTS) or at its tentative
-    collisions (COLLISIONS: a records.FlightTally). Russian roulette from rr_order scatterings on, with survival
+    collisions (COLLISIONS: a records.FlightTally); or (MOMENTS) its radiance's harmonics into coef (cells, 3,
+    SH_TERMS). Russian roulette from rr_order scatterings on, with survival
     min(1, weight)."""
     n_med = med.start.shape[0] - 1
     track = alloc_track_work(n_med)
@@ -257,6 +309,7 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
     x = np.empty(3)
     rgb = np.empty(3)
     power = np.empty(3)
+    y = np.empty(SH_TERMS)
     for p in range(first, last):
         s = _source_of(src.first, p)
         emit(src, s, seed, p, o, w, rgb)
@@ -279,6 +332,9 @@ def trace_photons(med, mgrid, src, rg, coef, seed, first, last, max_order, rr_or
                 t, sigma_t, sigma_s = delta_flight(o, w, np.inf, mgrid, med, key, vertex, track)
             if deposits and where == FLIGHTS:
                 deposit(o, w, t, rg, coef, power, med)
+            elif deposits and where == MOMENTS:
+                sh_basis(w, y)
+                deposit_moments(o, w, t, rg, coef, power, y)
             if t == np.inf or sigma_t <= 0.0:
                 break
             scatterings += 1
@@ -348,3 +404,35 @@ def grid_scattered(rg, x, m):
     if total <= 0.0:
         return 0.0, 0.0, 0.0
     return r / total, g / total, b / total
+
+
+@njit(**NJIT)
+def cached_light(cache, x, d, m, y):
+    """(r, g, b): the light that medium m scatters at x into -d per unit sigma_s, from the records.FluenceCache
+    (its harmonics trilinear between the cells' centres; y: SH_TERMS scratch): with L = sum c_j Y_j, the phase
+    function's convolution int p(d . u) L(-u) du is sum_j (-1)^l k_l c_j Y_j(d), k_l its Legendre coefficients
+    (Funk-Hecke); kept >= 0 (a truncated series can dip below)."""
+    ix0, ix1, fx = _axis(x[0], cache.origin[0], cache.size, cache.dims[0])
+    iy0, iy1, fy = _axis(x[1], cache.origin[1], cache.size, cache.dims[1])
+    iz0, iz1, fz = _axis(x[2], cache.origin[2], cache.size, cache.dims[2])
+    nx, ny = cache.dims[0], cache.dims[1]
+    mom = cache.moments
+    sh_basis(d, y)
+    for j in range(SH_TERMS):  # the convolution's weight per harmonic, at d
+        y[j] *= cache.phase_moments[m, j]
+    r = 0.0
+    g = 0.0
+    b = 0.0
+    for corner in range(8):
+        i = ix1 if corner & 1 else ix0
+        j = iy1 if corner & 2 else iy0
+        k = iz1 if corner & 4 else iz0
+        wt = (fx if corner & 1 else 1.0 - fx) * (fy if corner & 2 else 1.0 - fy) * (fz if corner & 4 else 1.0 - fz)
+        if wt == 0.0:
+            continue
+        c = i + nx * (j + ny * k)
+        for h in range(SH_TERMS):
+            r += wt * mom[c, 0, h] * y[h]
+            g += wt * mom[c, 1, h] * y[h]
+            b += wt * mom[c, 2, h] * y[h]
+    return max(r, 0.0), max(g, 0.0), max(b, 0.0)

@@ -84,6 +84,13 @@ SceneRecords = namedtuple("SceneRecords", ["media", "surfaces", "lights", "backg
 #: interpolates both and divides (kernels.fluence.grid_scattered)
 RadianceGrid = namedtuple("RadianceGrid", ["origin", "size", "dims", "coef", "towards", "peak", "filled"])
 
+#: the shared method's cache of the deep orders (renderer.shared, kernels.fluence.cached_light): a box of cubic cells
+#: as RadianceGrid's, moments (cells, 3, SH_TERMS) per cell and colour the spherical-harmonic coefficients of the
+#: scattered light's (and the environment's) radiance at the cell's centre (kernels.fluence.sh_basis);
+#: phase_moments (M, SH_TERMS) per medium (-1)^l times its phase function's Legendre coefficient of each
+#: harmonic's degree l; order: the tails trace the orders up to this one and read the cache beyond it (0: none)
+FluenceCache = namedtuple("FluenceCache", ["origin", "size", "dims", "moments", "phase_moments", "order"])
+
 #: a delta-tracked flight's deposits at its tentative collisions (kernels.fluence, render.grid.deposit: collisions):
 #: the RadianceGrid, its coef (cells, 3, M) and the photon's power rgb (3,)
 FlightTally = namedtuple("FlightTally", ["grid", "coef", "rgb"])

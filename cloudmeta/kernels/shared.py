@@ -19,6 +19,7 @@ from numba import njit
 from .config import NJIT
 from .bvh import misses_root_boxes
 from .camera import camera_ray, background_gives_light
+from .fluence import SH_TERMS, cached_light
 from .intervals import alloc_ray_work
 from .multiple import DIM_MEDIUM, DIM_ROULETTE, locate_depth, scattering_mix, trace_segment, tracked_vertex
 from .records import PathKey
@@ -30,14 +31,14 @@ NODE_KEYS = 64
 
 
 @njit(**NJIT)
-def depth_tails(camera, scene, quad, settings, grid, volumes, rows, cols, keys, taus, tails, seed, track, q_mean,
+def depth_tails(camera, scene, quad, settings, grid, volumes, cache, rows, cols, keys, taus, tails, seed, track, q_mean,
                 q_var, depth):
     """For each sample camera ray q through the centre of pixel (rows[q], cols[q]) (any integers: the
     frame's border may lie beyond the last row): depth[q] its optical depth up to the first surface, and at
     each node a with taus[a] < depth[q], the mean of tails[a] tails started where the ray's optical depth is
     taus[a] into q_mean[q, a] (RGB) and the variance of that mean into q_var[q, a]; NaN at nodes the ray does
     not reach. keys[q] keys the ray's random streams. camera: spp 1; settings a records.PathSettings (paths
-    unused); grid, volumes: the tracked flights' records; track a records.TrackWork (received, not allocated
+    unused); grid, volumes: the tracked flights' records; cache a records.FluenceCache (order 0: none); track a records.TrackWork (received, not allocated
     here: kernels.multiple.tracked_vertex says why)."""
     work = alloc_ray_work(scene)
     camera_work = alloc_ray_work(scene)
@@ -49,6 +50,7 @@ def depth_tails(camera, scene, quad, settings, grid, volumes, rows, cols, keys, 
     est = np.empty(3)
     x0 = np.empty(3)
     sums = np.empty(6)  # a node's sums of the tails' estimates and their squares
+    harmonics = np.empty(SH_TERMS)
     has_env = background_gives_light(scene.background)
     max_order, rr_order, tol_t = settings.max_order, settings.rr_order, quad.tol_t
     n_tau = taus.shape[0]
@@ -81,8 +83,8 @@ def depth_tails(camera, scene, quad, settings, grid, volumes, rows, cols, keys, 
                     est[c] = 0.0
                 ratio, m = scattering_mix(k, s, rp, scene.media, uniform(seed, stream, tail, 0, DIM_MEDIUM))
                 if ratio > 0.0:
-                    work = _tail(x0, d, ratio, m, key, scene, grid, volumes, tol_t, has_env, max_order, rr_order, work,
-                          track, o, dd, d_new, light, est)
+                    work = _tail(x0, d, ratio, m, key, scene, grid, volumes, cache, tol_t, has_env, max_order, rr_order,
+                                 work, track, o, dd, d_new, light, est, harmonics)
                 for c in range(3):
                     sums[c] += est[c]
                     sums[3 + c] += est[c] * est[c]
@@ -94,11 +96,12 @@ def depth_tails(camera, scene, quad, settings, grid, volumes, rows, cols, keys, 
 
 
 @njit(**NJIT)
-def _tail(x0, d, ratio, m, key, scene, grid, volumes, tol_t, has_env, max_order, rr_order, work, track, o, dd,
-          d_new, light, est):
+def _tail(x0, d, ratio, m, key, scene, grid, volumes, cache, tol_t, has_env, max_order, rr_order, work, track, o,
+          dd, d_new, light, est, harmonics):
     """One tail from x0 (the camera ray's direction d, the weight ratio = sigma_s / sigma_t there, the medium m
-    that turns it) into est; kernels.multiple.ray_paths's loop after its first vertex. Returns work, grown if a
-    flight needed more room."""
+    that turns it) into est; kernels.multiple.ray_paths's loop after its first vertex, up to the vertex whose
+    next event is order cache.order, where what it scatters of the cached light (records.FluenceCache) stands in
+    for the rest of the walk. Returns work, grown if a flight needed more room."""
     seed, stream, tail = key.seed, key.pixel, key.path
     for c in range(3):
         o[c] = x0[c]
@@ -121,5 +124,11 @@ def _tail(x0, d, ratio, m, key, scene, grid, volumes, tol_t, has_env, max_order,
         work, weight, m, u_cos, u_phi, u_lobe, done = tracked_vertex(
             o, dd, n_vert, weight, key, scene, grid, volumes, tol_t, has_env, max_order, work, track, light, est)
         if done or weight <= 0.0:
+            return work
+        if n_vert + 1 == cache.order:  # the walk's expected rest: what the vertex scatters of the cached light
+            r, g, b = cached_light(cache, o, dd, m, harmonics)
+            est[0] += weight * r
+            est[1] += weight * g
+            est[2] += weight * b
             return work
     return work

@@ -30,7 +30,8 @@ from ..kernels.multiple import render_paths
 from ..kernels.single import render_pixels
 from ..scene.limits import MAX_SHARED_TAILS
 from .pack import background_along, pixel_directions, single_octave
-from .shared import SPLIT, plan_tails, shared_light
+from .fluence import fluence_cache
+from .shared import CACHE_SEED, SPLIT, plan_tails, shared_light
 from .tracking import path_settings, paths_grid, paths_volumes
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
@@ -65,13 +66,17 @@ def approximate_light(scene, packed, settings, image, window, seed, progress=Fal
     octaves and the grid are inside the quadrature)."""
     if scene.render.method != "shared":
         return None
-    stride, tails, target = settings.shared
+    shared = settings.shared
+    # the cache of the deep orders, one for the pilot and every sample ray (the same on every tile)
+    cache = fluence_cache(scene, packed.records, seed ^ CACHE_SEED, shared.cache_order, shared.cache_cells,
+                          shared.cache_photons)
     plan = None
+    tails = shared.tails
     if tails is None:
-        plan = plan_tails(scene, packed, stride, target, single_mean, seed, MAX_SHARED_TAILS)
+        plan = plan_tails(scene, packed, shared.stride, shared.target, single_mean, seed, MAX_SHARED_TAILS, cache)
         tails = plan.tails
-    light, stderr, _ = shared_light(scene, packed, window, image[..., 3], seed, stride, tails, SPLIT,
-                                    progress=progress)
+    light, stderr, _ = shared_light(scene, packed, window, image[..., 3], seed, shared.stride, tails, SPLIT,
+                                    progress=progress, cache=cache)
     return light, stderr, plan
 
 

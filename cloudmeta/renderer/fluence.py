@@ -17,10 +17,11 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from ..kernels.fluence import ENVIRONMENT, FLIGHTS, cell_scattering, trace_photons
+from ..kernels.fluence import (ENVIRONMENT, FLIGHTS, MOMENTS, SH_DEGREE, SH_TERMS, cell_scattering,
+                               trace_photons)
 from ..kernels.kinds import DIRECTIONAL
 from ..kernels.optics import phase
-from ..kernels.records import PhotonSources, RadianceGrid
+from ..kernels.records import FluenceCache, PhotonSources, RadianceGrid
 from ..scene.atmosphere import sky_mean
 from .quality import resolve_settings
 from .tracking import RR_ORDER, majorant_grid
@@ -124,6 +125,39 @@ def delta_split(media, peak_degrees):
     return peak, media._replace(scale=media.scale * keep, albedo=media.albedo / keep)
 
 
+def _box(mgrid, cells):
+    """(origin, cell size, dims, sphere centre, sphere radius): cubic cells over the majorant grid's box, as many as
+    a cube of ``cells`` per side (a flat deck gets cells as small as a round cloud's), and the sphere around it that
+    the parallel photons cross."""
+    lo = mgrid.origin
+    extent = mgrid.dims * mgrid.size
+    size = min(float(np.prod(extent)) ** (1.0 / 3.0) / cells, float(extent.max()) / 2.0)
+    dims = np.maximum(np.ceil(extent / size - 1e-9), 1).astype(np.int64)
+    return (np.ascontiguousarray(lo, np.float64), size, dims, lo + 0.5 * extent,
+            0.5 * float(np.linalg.norm(extent)) * 1.001)
+
+
+def _trace_batches(med, mgrid, src, shell, shape, seed, max_order, where):
+    """The photons' deposits (``shape``: cells x 3 x moments), traced in BATCHES fixed batches on threads and summed
+    in batch order: the same sum on any thread count."""
+    total = int(src.first[-1])
+    edges = [total * b // BATCHES for b in range(BATCHES + 1)]
+
+    def batch(b):
+        coef = np.zeros(shape)
+        trace_photons(med, mgrid, src, shell, coef, np.int64(seed), np.int64(edges[b]), np.int64(edges[b + 1]),
+                      np.int64(max_order), np.int64(RR_ORDER), np.int64(where))
+        return coef
+
+    coef = np.zeros(shape)
+    threads = numba.get_num_threads()
+    with ThreadPoolExecutor(threads) as pool:
+        for wave in range(0, BATCHES, threads):  # a wave of batches at a time: threads + 1 arrays in memory
+            for part in pool.map(batch, range(wave, min(wave + threads, BATCHES))):
+                coef += part
+    return coef
+
+
 def radiance_grid(scene, records, seed, camera_position, peak, grid) -> RadianceGrid:
     """The records.RadianceGrid of the scene (records: its packed records.SceneRecords) seen from
     camera_position, depositing the phase functions clamped by peak (delta_split), with ``grid`` = (cells, photons,
@@ -131,38 +165,16 @@ def radiance_grid(scene, records, seed, camera_position, peak, grid) -> Radiance
     cells, photons, where = grid
     med = records.media
     mgrid = majorant_grid(scene, med)
-    lo = mgrid.origin
-    extent = mgrid.dims * mgrid.size
-    # cubic cells, as many as a cube of ``cells`` per side: a flat deck gets cells as small as a round cloud's
-    size = min(float(np.prod(extent)) ** (1.0 / 3.0) / cells, float(extent.max()) / 2.0)
-    dims = np.maximum(np.ceil(extent / size - 1e-9), 1).astype(np.int64)
-    centre = lo + 0.5 * extent
-    radius = 0.5 * float(np.linalg.norm(extent)) * 1.001
+    lo, size, dims, centre, radius = _box(mgrid, cells)
     src = photon_sources(records, centre, radius, photons, mgrid)
     k, j, i = np.meshgrid(*(np.arange(n) for n in dims[::-1]), indexing="ij")
     centres = lo + (np.stack([i, j, k], -1).reshape(-1, 3) + 0.5) * size
     towards = np.asarray(camera_position, np.float64) - centres
     towards /= np.maximum(np.linalg.norm(towards, axis=1, keepdims=True), 1e-300)
     n_cells, n_media = len(centres), len(med.albedo)
-    shell = RadianceGrid(origin=np.ascontiguousarray(lo, np.float64), size=size, dims=dims,
-                         coef=np.zeros((1, 3, n_media)), towards=np.ascontiguousarray(towards), peak=peak,
-                         filled=np.ones((1, n_media)))
-    total = int(src.first[-1])
-    edges = [total * b // BATCHES for b in range(BATCHES + 1)]
-    max_order = int(scene.render.max_order)
-
-    def batch(b):
-        coef = np.zeros((n_cells, 3, n_media))
-        trace_photons(med, mgrid, src, shell, coef, np.int64(seed), np.int64(edges[b]), np.int64(edges[b + 1]),
-                      np.int64(max_order), np.int64(RR_ORDER), np.int64(where))
-        return coef
-
-    coef = np.zeros((n_cells, 3, n_media))
-    threads = numba.get_num_threads()
-    with ThreadPoolExecutor(threads) as pool:
-        for wave in range(0, BATCHES, threads):  # a wave of batches at a time: threads + 1 arrays in memory
-            for part in pool.map(batch, range(wave, min(wave + threads, BATCHES))):
-                coef += part  # in batch order: the same sum on any thread count
+    shell = RadianceGrid(origin=lo, size=size, dims=dims, coef=np.zeros((1, 3, n_media)),
+                         towards=np.ascontiguousarray(towards), peak=peak, filled=np.ones((1, n_media)))
+    coef = _trace_batches(med, mgrid, src, shell, (n_cells, 3, n_media), seed, int(scene.render.max_order), where)
     if where == FLIGHTS:
         return shell._replace(coef=coef / size ** 3, filled=np.ones((n_cells, n_media)))
     # the collisions estimate each cell's integral of sigma_s,m S_m; the gather divides it by that of sigma_s,m
@@ -171,6 +183,45 @@ def radiance_grid(scene, records, seed, camera_position, peak, grid) -> Radiance
     sigma_s = np.zeros((n_cells, n_media))
     cell_scattering(mgrid, med, shell, np.int64(SUBCELLS), sigma_s)
     return shell._replace(coef=coef / size ** 3, filled=sigma_s / size ** 3)
+
+
+def no_cache(n_media) -> FluenceCache:
+    """The FluenceCache that no tail reads (order 0): the kernels' one signature with or without a cache."""
+    return FluenceCache(origin=np.zeros(3), size=1.0, dims=np.ones(3, np.int64),
+                        moments=np.zeros((1, 3, SH_TERMS)), phase_moments=np.zeros((n_media, SH_TERMS)), order=0)
+
+
+def fluence_cache(scene, records, seed, order, cells, photons) -> FluenceCache:
+    """The shared method's records.FluenceCache: the fluence and flux of the scattered light (and the
+    environment's) in a grid of about ``cells`` cubic cells per side, from ``photons`` photons, for tails that trace
+    the orders up to ``order`` and read the cache beyond it (order 0, or not below the scene's max_order: none)."""
+    med = records.media
+    max_order = int(scene.render.max_order)
+    if order <= 0 or order >= max_order:
+        return no_cache(len(med.albedo))
+    mgrid = majorant_grid(scene, med)
+    lo, size, dims, centre, radius = _box(mgrid, cells)
+    src = photon_sources(records, centre, radius, photons, mgrid)
+    n_cells = int(np.prod(dims))
+    shell = RadianceGrid(origin=lo, size=size, dims=dims, coef=np.zeros((1, 3, SH_TERMS)), towards=np.zeros((1, 3)),
+                         peak=np.zeros((len(med.albedo), 2)), filled=np.ones((1, SH_TERMS)))
+    # the light at a vertex of order ``order`` reaches the camera ``order`` - 1 scatterings later
+    moments = _trace_batches(med, mgrid, src, shell, (n_cells, 3, SH_TERMS), seed, max_order - order + 1, MOMENTS)
+    degree = np.array(SH_DEGREE)
+    phase_moments = np.array([(-1.0) ** degree * legendre_moments(row)[degree] for row in med.phase], np.float64)
+    return FluenceCache(origin=lo, size=size, dims=dims, moments=moments / size ** 3,
+                        phase_moments=phase_moments.reshape(-1, SH_TERMS), order=int(order))
+
+
+def legendre_moments(row, degrees=4, nodes=20_000):
+    """k_l = 2 pi int p(mu) P_l(mu) d mu, l < degrees, of a records.Media.phase row's phase function (k_0 = 1; g^l
+    for Henyey-Greenstein): midpoint rule in x, mu = 1 - 2 x^3 crowding the nodes into the forward peak."""
+    x = (np.arange(nodes) + 0.5) / nodes
+    mu = 1.0 - 2.0 * x ** 3
+    dmu = 6.0 * x ** 2 / nodes
+    p = phase_table(row, mu)
+    return np.array([2.0 * math.pi * float(np.sum(p * np.polynomial.legendre.Legendre.basis(l)(mu) * dmu))
+                     for l in range(degrees)])
 
 
 def with_radiance_grid(scene, packed, seed, settings=None):

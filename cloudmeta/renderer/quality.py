@@ -30,6 +30,10 @@ growth          1       1       1       0          the step limits max_tau and m
 (shared)        8       4       2       1          the shared method's stride (at a longer side of 512
                                                    pixels, scaled with it; renderer.shared;
                                                    ``render.shared``)
+(cache)         5       6       8       none       the shared method's tails trace the orders up to this
+                48^3    48^3    48^3               one and read the cache of the rest, built by this
+                2^20    2^21    2^22               many cells and photons (renderer.fluence;
+                                                   ``render.shared.cache`` sets the order, 0: none)
 (paths)         0.10    0.03    0.01    0.003      multiple scattering: the relative RMSE of the paths'
                                                    part against the scattered light that the planned
                                                    paths aim at (renderer.multiple; ``render.ms_spp``
@@ -68,10 +72,24 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from ..kernels.fluence import COLLISIONS, FLIGHTS
 from ..scene.model import RenderSettings
 from ..scene.vocabulary import QUALITIES, SHADOW_MAP_RESOLUTION, ShadowMode
+
+
+class SharedSettings(NamedTuple):
+    """The approximate mode's shared method (renderer.shared): the preset's stride where render.shared leaves it
+    out; render.shared.tails, else None and the tails are planned to ``target``, the preset's paths target
+    (renderer.shared.plan_tails); the cache of the deep orders (renderer.fluence.fluence_cache): the order the
+    tails trace up to (render.shared.cache, else the preset's; 0: no cache), its cells and photons."""
+    stride: int
+    tails: int | None
+    target: float
+    cache_order: int
+    cache_cells: int
+    cache_photons: int
 
 
 @dataclass(frozen=True)
@@ -90,6 +108,9 @@ class Preset:
     #: the approximate mode's shared method: pixels between the coarsest sample rays at a longer side of
     #: SHARED_SIDE (renderer.shared; its tails are planned to ``paths_target``)
     shared: int
+    #: the shared method's cache of the deep orders: (order, cells, photons); order 0: none
+    #: (renderer.fluence.fluence_cache)
+    cache: tuple = (0, 48, 1 << 20)
     #: multiple scattering: the relative RMSE of the image's Monte Carlo part, against the frame's scattered
     #: light, that the planned paths aim at (renderer.multiple); None: no plan, ``render.ms_spp`` or its fallback
     paths_target: float | None = None
@@ -107,13 +128,13 @@ class Preset:
 PRESETS = {
     "draft": Preset(paths_target=0.10, target=3e-3, start=1.0, grid=(24, 1 << 21), quadrature=dict(
         tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9, growth=1.0),
-        shared=8),
+        shared=8, cache=(5, 48, 1 << 20)),
     "default": Preset(paths_target=0.03, target=1e-3, start=0.0, grid=(40, 1 << 23), quadrature=dict(
         tolerance=1e-3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-4, root_tolerance=1e-9,
-        growth=1.0), shared=4),
+        growth=1.0), shared=4, cache=(6, 48, 1 << 21)),
     "fine": Preset(paths_target=0.01, target=3e-4, start=-1.0, grid=(56, 1 << 25), quadrature=dict(
         tolerance=3e-4, max_tau=0.175, max_length=1 / 32, max_angle=0.1, cutoff=1e-5, root_tolerance=1e-9,
-        growth=1.0), shared=2),
+        growth=1.0), shared=2, cache=(8, 48, 1 << 22)),
     "reference": Preset(paths_target=0.003, target=None, start=None, grid=(56, 1 << 25), quadrature=dict(
         tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0, root_tolerance=1e-9,
         growth=0.0), shared=1),
@@ -161,10 +182,8 @@ class FrameSettings:
     #: the approximate mode's grid method: (cells, photons, deposit: kernels.fluence.FLIGHTS or COLLISIONS), the
     #: preset's where render.grid leaves them out; None in every other mode
     grid: tuple | None = field(default=None)
-    #: the approximate mode's shared method: (stride, tails, target): the preset's stride where render.shared
-    #: leaves it out; render.shared.tails, else None and the tails are planned to the preset's paths target
-    #: (renderer.shared.plan_tails); None in every other mode
-    shared: tuple | None = None
+    #: the approximate mode's shared method (a SharedSettings); None in every other mode
+    shared: SharedSettings | None = None
     #: multiple scattering: paths per pixel (render.ms_spp), or None where they are planned to ``paths_target``
     paths: int | None = None
     #: multiple scattering with planned paths: the relative RMSE they aim at (render.error where given, else the
@@ -219,9 +238,12 @@ def resolve_settings(scene) -> FrameSettings:
                 COLLISIONS if deposit == "collisions" else FLIGHTS)
     shared = None
     if r.scattering == "approximate" and r.method == "shared":
-        stride, tails = r.shared or (None, None)
-        shared = (int(stride or shared_stride(preset.shared, scene.image.width, scene.image.height)),
-                  None if tails is None else int(tails), float(preset.paths_target))
+        stride, tails, order = (tuple(r.shared or ()) + (None, None, None))[:3]  # (stride, tails) still reads
+        shared = SharedSettings(stride=int(stride or shared_stride(preset.shared, scene.image.width,
+                                                                   scene.image.height)),
+                                tails=None if tails is None else int(tails), target=float(preset.paths_target),
+                                cache_order=int(preset.cache[0] if order is None else order),
+                                cache_cells=int(preset.cache[1]), cache_photons=int(preset.cache[2]))
     calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
                  and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
     paths_target = None

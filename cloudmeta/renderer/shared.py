@@ -34,6 +34,7 @@ from ..kernels.media import n_media
 from ..kernels.records import PathSettings
 from ..kernels.shared import NODE_KEYS, depth_tails
 from ..kernels.tracking import alloc_track_work
+from .fluence import no_cache
 from .threads import progress_bar
 from .tracking import RR_ORDER, majorant_grid, paths_volumes
 
@@ -47,6 +48,8 @@ CHUNK = 64
 #: the tails' streams are keyed by the render's seed with these bits flipped: the approximation's error estimate
 #: (renderer.approximate) draws its unbiased paths from the render's seed, and must not share a number with them
 TAIL_SEED = 0x5A1D5EED
+#: and the photons of their cache (renderer.fluence.fluence_cache) with these
+CACHE_SEED = 0xCAC4E5EED
 #: a block is split where its corners' profiles differ by more than this share of their light (beyond noise)
 SPLIT = 0.25
 #: the planned tails (``plan_tails``; render.shared without ``tails``): a pilot of PILOT_TAILS tails on the sample
@@ -77,15 +80,16 @@ class TailPlan:
     predicted: float
 
 
-def plan_tails(scene, packed, stride, target, single_mean, seed, max_tails) -> TailPlan:
+def plan_tails(scene, packed, stride, target, single_mean, seed, max_tails, cache=None) -> TailPlan:
     """The tails per coarsest sample ray that bring the shared light's noise to NOISE_SHARE of ``target`` relative
     RMSE against the frame's scattered light (``single_mean``, the pilot's mean single-scattered radiance over
     pixels and RGB, plus the shared light's mean that this pilot measures), from a pilot on the sample rays every
-    2 ``stride`` pixels of the whole frame: the same plan for every tile."""
+    2 ``stride`` pixels of the whole frame: the same plan for every tile. cache: the tails' records.FluenceCache
+    (renderer.fluence.fluence_cache; None: none)."""
     h, w = scene.image.height, scene.image.width
     step = 2 * int(stride)
     rr, cc = np.meshgrid(np.arange(0, h, step), np.arange(0, w, step), indexing="ij")
-    pilot = Lattice(scene, packed, seed, scene.render.max_order)
+    pilot = Lattice(scene, packed, seed, scene.render.max_order, cache)
     pilot.trace(np.stack([rr.ravel(), cc.ravel()], 1), tails_per_node(PILOT_TAILS))
     ids = pilot.ids(rr.ravel(), cc.ravel())
     valid = ~np.isnan(pilot.mean[ids, :, 0])
@@ -152,8 +156,9 @@ def tails_per_node(tails, taus=TAUS):
 class Lattice:
     """The sample rays computed so far, by lattice point (row, column): their profiles and depths."""
 
-    def __init__(self, scene, packed, seed, max_order):
+    def __init__(self, scene, packed, seed, max_order, cache=None):
         self.packed = packed
+        self.cache = no_cache(n_media(packed.records.media)) if cache is None else cache
         self.camera = packed.camera._replace(spp=1)
         self.seed = np.int64(seed ^ TAIL_SEED)
         self.grid = majorant_grid(scene, packed.records.media)
@@ -186,8 +191,8 @@ class Lattice:
 
         def run(lo):
             hi = min(lo + CHUNK, n)
-            depth_tails(p, rec, quad, self.path_settings, self.grid, self.volumes, rows[lo:hi], cols[lo:hi],
-                        keys[lo:hi], TAUS, tails, self.seed, alloc_track_work(n_med), mean[lo:hi], var[lo:hi],
+            depth_tails(p, rec, quad, self.path_settings, self.grid, self.volumes, self.cache, rows[lo:hi],
+                        cols[lo:hi], keys[lo:hi], TAUS, tails, self.seed, alloc_track_work(n_med), mean[lo:hi], var[lo:hi],
                         depth[lo:hi])
             return lo
         bar = progress_bar(n, progress, unit="ray", desc=desc)
@@ -206,16 +211,17 @@ class Lattice:
         return np.array([self.index[(int(r), int(c))] for r, c in zip(rows, cols)], np.int64)
 
 
-def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, progress=False):
+def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, progress=False, cache=None):
     """(light, stderr, sample rays): the shared method's light (tile_h x tile_w x 3) of the tile ``window``
     ((r_lo, r_hi), (c_lo, c_hi)), whose single-scattering alpha is ``alpha`` (tile_h x tile_w): the module
     docstring's three steps, with sample rays
     every ``stride`` pixels (a power of 2), about ``tails`` tails per sample ray, blocks split where their
-    corners differ by more than ``threshold`` of their light; stderr: the tails' noise in it, per pixel."""
+    corners differ by more than ``threshold`` of their light, the tails reading ``cache`` (a records.FluenceCache,
+    or None); stderr: the tails' noise in it, per pixel."""
     (r_lo, r_hi), (c_lo, c_hi) = window
     h, w = scene.image.height, scene.image.width
     s0 = int(stride)
-    lattice = Lattice(scene, packed, seed, scene.render.max_order)
+    lattice = Lattice(scene, packed, seed, scene.render.max_order, cache)
     # the depth pass: which pixels of the level-0 blocks that the tile touches meet a medium
     br0, br1 = r_lo // s0, (r_hi - 1) // s0 + 1
     bc0, bc1 = c_lo // s0, (c_hi - 1) // s0 + 1
@@ -272,8 +278,8 @@ def _pixel_hits(lattice, r0, r1, c0, c1, chunk=4096):
     def run(lo):
         hi = min(lo + chunk, n)
         unused = np.empty((hi - lo, len(TAUS), 3))  # no tails: the profiles stay NaN
-        depth_tails(p, rec, quad, lattice.path_settings, lattice.grid, lattice.volumes, rows[lo:hi], cols[lo:hi],
-                    rows[lo:hi], TAUS, none, lattice.seed, alloc_track_work(n_med), unused, unused.copy(),
+        depth_tails(p, rec, quad, lattice.path_settings, lattice.grid, lattice.volumes, lattice.cache, rows[lo:hi],
+                    cols[lo:hi], rows[lo:hi], TAUS, none, lattice.seed, alloc_track_work(n_med), unused, unused.copy(),
                     depth[lo:hi])
     with ThreadPoolExecutor(numba.get_num_threads()) as pool:
         list(pool.map(run, range(0, n, chunk)))

@@ -188,14 +188,16 @@ def _grid(render):
 
 
 def _shared(render):
-    """render.shared: {stride, tails} (docs/approximate.md), None where absent; a key left out is None too: the
-    quality preset's stride, tails planned to the preset's target."""
+    """render.shared: {stride, tails, cache} (docs/approximate.md), None where absent; a key left out is None too:
+    the quality preset's stride, tails planned to the preset's target, the preset's cache."""
     if "shared" not in render.data:
         return None
-    n = render.node("shared", ("stride", "tails"), {})
+    n = render.node("shared", ("stride", "tails", "cache"), {})
     stride = n.integer("stride", None, check=lambda v: 1 <= v <= lim.MAX_SHARED_STRIDE and v & (v - 1) == 0,
                        expect=f"a power of 2 from 1 to {lim.MAX_SHARED_STRIDE}")
-    return stride, n.integer("tails", None, **_int_range(2, lim.MAX_SHARED_TAILS))
+    cache = n.integer("cache", None, check=lambda v: v == 0 or 2 <= v <= lim.MAX_ORDER,
+                      expect=f"0 (no cache) or an order from 2 to {lim.MAX_ORDER}")
+    return stride, n.integer("tails", None, **_int_range(2, lim.MAX_SHARED_TAILS)), cache
 
 
 EXPOSURE = dict(check=lambda v: abs(v) <= lim.MAX_EXPOSURE,

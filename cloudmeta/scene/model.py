@@ -82,7 +82,7 @@ class RenderSettings:
     method: str = "octaves"     #: approximate: the method (docs/approximate.md)
     octaves: tuple = OCTAVES    #: approximate, octaves: (count, a, b, c)
     grid: tuple | None = None   #: approximate, grid: (cells, photons, deposit), None: the preset's, flights
-    shared: tuple | None = None  #: approximate, shared: (stride, tails), None (or a None in it): the preset's
+    shared: tuple | None = None  #: approximate, shared: (stride, tails, cache), None (or a None in it): the preset's
     max_order: int = 64         #: multiple: the highest scattering order
     ms_spp: int | None = None   #: multiple: Monte Carlo paths per pixel; None: planned to the preset's target
     track_from: int = 2         #: multiple: the first vertex reached by a tracked flight (docs/model.md §10.1)

@@ -17,7 +17,7 @@ def tails_of(lattice, rows, cols, keys, tails):
     mean, var, depth = np.empty((n, len(TAUS), 3)), np.empty((n, len(TAUS), 3)), np.empty(n)
     rec = lattice.packed.records
     depth_tails(lattice.camera, rec, lattice.packed.quadrature, lattice.path_settings, lattice.grid, lattice.volumes,
-                rows, cols, keys, TAUS, tails, lattice.seed, alloc_track_work(np.int64(n_media(rec.media))), mean,
+                lattice.cache, rows, cols, keys, TAUS, tails, lattice.seed, alloc_track_work(np.int64(n_media(rec.media))), mean,
                 var, depth)
     return mean, var, depth
 

@@ -38,18 +38,27 @@ def shared_cloud(tmp_path, shared="{stride: 4, tails: 64}", max_order=16, **kw):
 def test_white_furnace(tmp_path):
     """Albedo 1, no lights, a uniform environment: every tail sees the environment, so each node's light is
     the environment and a pixel's is the environment times its alpha; with the background seen through the
-    media, exactly the environment (no path is cut short by max_order)."""
-    s = shared_cloud(tmp_path, lights="[]", albedo=1.0, background="[0.5, 0.7, 1.0]", size=16, max_order=100000)
+    media, exactly the environment (no path is cut short by max_order). With the cache of the deep orders, the
+    environment within its photons' noise."""
+    s = shared_cloud(tmp_path, "{stride: 4, tails: 64, cache: 0}", lights="[]", albedo=1.0,
+                     background="[0.5, 0.7, 1.0]", size=16, max_order=100000)
     img = render(s, progress=False)
     assert np.count_nonzero(img[..., 3] > 0.5) > 20
     np.testing.assert_allclose(img[..., :3], np.broadcast_to([0.5, 0.7, 1.0], img[..., :3].shape), rtol=1e-5)
+    cached = render(shared_cloud(tmp_path, "{stride: 4, tails: 64, cache: 3}", lights="[]", albedo=1.0,
+                                 background="[0.5, 0.7, 1.0]", size=16, max_order=100000), progress=False)
+    inside = img[..., 3] > 0.5
+    np.testing.assert_allclose(cached[inside, :3].mean(axis=0), [0.5, 0.7, 1.0], rtol=0.02)
+    assert not np.array_equal(cached, img)
 
 
-def test_own_tails_against_the_unbiased_estimator(tmp_path):
+@pytest.mark.parametrize("cache", [0, 5])
+def test_own_tails_against_the_unbiased_estimator(tmp_path, cache):
     """Stride 1 (every pixel its own sample ray): the only approximation left is Q piecewise linear in the
-    optical depth; the image's multiply scattered light agrees with the unbiased paths' to a few per cent."""
+    optical depth (and, with the cache, the cached orders beyond 5); the image's multiply scattered light agrees
+    with the unbiased paths' to a few per cent."""
     from dataclasses import replace
-    s = shared_cloud(tmp_path, "{stride: 1, tails: 2048}", size=10)
+    s = shared_cloud(tmp_path, f"{{stride: 1, tails: 2048, cache: {cache}}}", size=10)
     shared = render(s, progress=False)[..., :3].astype(np.float64)
     single = render(replace(s, render=replace(s.render, scattering="single")), progress=False).astype(np.float64)
     multi = render(replace(s, render=replace(s.render, scattering="multiple", ms_spp=2048)), progress=False)
@@ -84,8 +93,9 @@ def test_planned_tails(tmp_path):
     """Without render.shared.tails the tails are planned to the preset's target from a pilot over the whole frame:
     the plan is the frame's in every tile (bit-identical tiles), it scales as 1 / target^2, and the image's noise
     (the error channels' RMS over the scattered light) comes out near the share of the target it aims at."""
+    from cloudmeta.renderer.fluence import fluence_cache
     from cloudmeta.renderer.pack import pack_scene
-    from cloudmeta.renderer.shared import plan_tails
+    from cloudmeta.renderer.shared import CACHE_SEED, plan_tails
     s = shared_cloud(tmp_path, "{stride: 2}", size=24)
     frame = render_frame(s, progress=False, error=True)
     plan = frame.plan
@@ -98,9 +108,13 @@ def test_planned_tails(tmp_path):
     assert 0.3 * NOISE_SHARE * 0.10 < noise < 1.5 * NOISE_SHARE * 0.10
     assert plan.scattered_mean == pytest.approx(scattered, rel=0.2)
     packed = pack_scene(s, 0)
-    half = plan_tails(s, packed, 2, 0.05, frame.scattered.mean, 0, 2 ** 24)
+    settings = frame.settings.shared
+    assert settings.cache_order == 5  # draft's cache, which the pilot's tails read too
+    cache = fluence_cache(s, packed.records, 0 ^ CACHE_SEED, settings.cache_order, settings.cache_cells,
+                          settings.cache_photons)
+    half = plan_tails(s, packed, 2, 0.05, frame.scattered.mean, 0, 2 ** 24, cache)
     assert half.tails == pytest.approx(4 * plan.tails, rel=0.01) and half.predicted < plan.predicted
-    assert plan_tails(s, packed, 2, 0.05, frame.scattered.mean, 0, 1000).tails == 1000  # render's limit
+    assert plan_tails(s, packed, 2, 0.05, frame.scattered.mean, 0, 1000, cache).tails == 1000  # render's limit
     dark = shared_cloud(tmp_path, "{stride: 2}", size=24, lights="[]", background="[0, 0, 0]")
     assert plan_tails(dark, pack_scene(dark, 0), 2, 0.1, 0.0, 0, 2 ** 24).tails == MIN_TAILS  # nothing scatters
 
@@ -121,6 +135,8 @@ def test_settings_are_validated(tmp_path):
         shared_cloud(tmp_path, "{stride: 3}")
     with pytest.raises(SceneError, match=r"render\.shared\.tails"):
         shared_cloud(tmp_path, "{tails: 1}")
+    with pytest.raises(SceneError, match=r"render\.shared\.cache"):
+        shared_cloud(tmp_path, "{cache: 1}")
     with pytest.raises(SceneError, match=r"render\.shared\.paths"):
         shared_cloud(tmp_path, "{paths: 8}")
     p = tmp_path / "surf.yaml"

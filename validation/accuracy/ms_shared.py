@@ -13,7 +13,7 @@ written to validation/results/ms_shared_SIZE.csv with a plot of estimated error 
 (ms_shared_SIZE.png): estimates, not errors against references, which do not exist at this size.
 
     python -m validation.accuracy.ms_shared [--size 512] [--quality draft default] [--scenes ...] [--check]
-        [--planned draft]
+        [--planned draft] [--cache N]
 """
 from __future__ import annotations
 
@@ -32,11 +32,13 @@ from validation.common import (RESULTS, finish_time_error, parse, parser, pyplot
 SCENES = {**REPORT, **FIT}
 
 
-def measure(name, size, quality, seed=1):
+def measure(name, size, quality, seed=1, cache=None):
     """One scene at one quality, rendered with ``error=True`` (the time includes the estimate): a dict of its time,
     the estimated error (renderer.approximate.approximation_error) and the noise the error channels hold (the
-    tails' and the quadrature's), relative to the scattered light."""
-    s = with_settings(scene_of(SCENES[name], size, "approximate", method="shared"), quality=quality)
+    tails' and the quadrature's), relative to the scattered light. cache: render.shared.cache (None: the
+    preset's)."""
+    s = with_settings(scene_of(SCENES[name], size, "approximate", method="shared"), quality=quality,
+                      shared=None if cache is None else (None, None, cache))
     t0 = time.perf_counter()
     result = cm.render_frame(s, progress=False, seed=seed, error=True)
     seconds = time.perf_counter() - t0
@@ -94,6 +96,8 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--quality", nargs="+", default=["draft"])
     ap.add_argument("--check", action="store_true", help="at 64 wide against the converged references")
+    ap.add_argument("--cache", type=int, default=None, help="render.shared.cache: the order the tails trace up to "
+                    "before they read the cache (0: no cache; default: the preset's)")
     ap.add_argument("--planned", nargs="*", default=[], help="also the planned paths at these presets, the octaves, "
                     "and a CSV and plot")
     args, _ = parse(ap, argv)
@@ -101,7 +105,7 @@ def main(argv=None):
     size = 64 if args.check else args.size
     for name in args.scenes:
         for quality in args.quality:
-            r = measure(name, size, quality)
+            r = measure(name, size, quality, cache=args.cache)
             line = (f"{name:14s} {r['size']:>8s} {quality:8s} {r['seconds']:7.1f} s"
                     f"  estimated {r['estimated']:.3f} +- {r['est_se']:.3f} (tails' noise {r['noise']:.3f}, "
                     f"{r['tails']} tails planned)")

@@ -32,6 +32,7 @@ import cloudmeta as cm
 from cloudmeta.kernels.media import n_media
 from cloudmeta.kernels.shared import depth_tails
 from cloudmeta.kernels.tracking import alloc_track_work
+from cloudmeta.renderer.fluence import no_cache
 from cloudmeta.renderer.multiple import _tracked_records
 from cloudmeta.renderer.pack import pack_scene
 from cloudmeta.renderer.quality import resolve_settings
@@ -59,7 +60,7 @@ def run_tails(packed, settings, grid, volumes, rows, cols, taus, K, seed, thread
         o = np.empty((len(idx), len(taus), 3))
         uu = np.zeros(len(idx))
         r, c = rows[idx].astype(np.int64), cols[idx].astype(np.int64)
-        depth_tails(cam, rec, quad, settings, grid, volumes, r, c, r * width + c, taus, tails, np.int64(seed),
+        depth_tails(cam, rec, quad, settings, grid, volumes, no_cache(n_media(rec.media)), r, c, r * width + c, taus, tails, np.int64(seed),
                     alloc_track_work(np.int64(n_media(rec.media))), o, np.empty_like(o), uu)
         out[idx] = o
         u[idx] = uu
