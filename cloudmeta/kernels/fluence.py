@@ -25,6 +25,11 @@ With ``where`` COLLISIONS the photons deposit instead at their tentative collisi
 cell then estimating the integral of sigma_s,m S_m over it; renderer.fluence adds the cells' integral of
 sigma_s,m (``cell_scattering``) as RadianceGrid.filled.
 
+With ``where`` MOMENTS the flights deposit instead the real spherical harmonics of degrees 0-3 of their
+direction (``deposit_moments``): the radiance's coefficients per cell, without the camera, the shared method's
+cache of the deep orders, which its path tails read by the phase function's Legendre coefficients
+(``cached_light``).
+
 At a quadrature node x the gather adds (sigma_s,m / sigma_t) S_m(x) to J, S_m trilinear between the cells'
 centres (``grid_scattered``).
 
@@ -375,28 +380,41 @@ def _axis(xa, origin, size, n):
 
 
 @njit(**NJIT_INLINE)
+def _around(grid, x):
+    """The cells around x between their centres (_axis per axis) and the grid's dims in x and y, for _corner."""
+    ix0, ix1, fx = _axis(x[0], grid.origin[0], grid.size, grid.dims[0])
+    iy0, iy1, fy = _axis(x[1], grid.origin[1], grid.size, grid.dims[1])
+    iz0, iz1, fz = _axis(x[2], grid.origin[2], grid.size, grid.dims[2])
+    return ix0, ix1, fx, iy0, iy1, fy, iz0, iz1, fz, grid.dims[0], grid.dims[1]
+
+
+@njit(**NJIT_INLINE)
+def _corner(corner, around):
+    """(flat cell index, trilinear weight) of corner 0-7 (bits: x, y, z) of the cells ``around`` a point."""
+    ix0, ix1, fx, iy0, iy1, fy, iz0, iz1, fz, nx, ny = around
+    i = ix1 if corner & 1 else ix0
+    j = iy1 if corner & 2 else iy0
+    k = iz1 if corner & 4 else iz0
+    wt = (fx if corner & 1 else 1.0 - fx) * (fy if corner & 2 else 1.0 - fy) * (fz if corner & 4 else 1.0 - fz)
+    return i + nx * (j + ny * k), wt
+
+
+@njit(**NJIT_INLINE)
 def grid_scattered(rg, x, m):
     """(r, g, b): what medium m scatters at x towards the camera, per unit sigma_s (module docstring): S_m
     trilinear between the cells' centres: sum w_c coef_c / sum w_c filled_c over the 8 cells c around x, w_c the
     trilinear weights (records.RadianceGrid: filled is the cells' mean sigma_s,m where the photons deposited at
     their collisions, 1 where they deposited along their flights)."""
-    ix0, ix1, fx = _axis(x[0], rg.origin[0], rg.size, rg.dims[0])
-    iy0, iy1, fy = _axis(x[1], rg.origin[1], rg.size, rg.dims[1])
-    iz0, iz1, fz = _axis(x[2], rg.origin[2], rg.size, rg.dims[2])
-    nx, ny = rg.dims[0], rg.dims[1]
+    around = _around(rg, x)
     coef = rg.coef
     r = 0.0
     g = 0.0
     b = 0.0
     total = 0.0
     for corner in range(8):
-        i = ix1 if corner & 1 else ix0
-        j = iy1 if corner & 2 else iy0
-        k = iz1 if corner & 4 else iz0
-        wt = (fx if corner & 1 else 1.0 - fx) * (fy if corner & 2 else 1.0 - fy) * (fz if corner & 4 else 1.0 - fz)
+        c, wt = _corner(corner, around)
         if wt == 0.0:
             continue
-        c = i + nx * (j + ny * k)
         total += wt * rg.filled[c, m]
         r += wt * coef[c, 0, m]
         g += wt * coef[c, 1, m]
@@ -412,10 +430,7 @@ def cached_light(cache, x, d, m, y):
     (its harmonics trilinear between the cells' centres; y: SH_TERMS scratch): with L = sum c_j Y_j, the phase
     function's convolution int p(d . u) L(-u) du is sum_j (-1)^l k_l c_j Y_j(d), k_l its Legendre coefficients
     (Funk-Hecke); kept >= 0 (a truncated series can dip below)."""
-    ix0, ix1, fx = _axis(x[0], cache.origin[0], cache.size, cache.dims[0])
-    iy0, iy1, fy = _axis(x[1], cache.origin[1], cache.size, cache.dims[1])
-    iz0, iz1, fz = _axis(x[2], cache.origin[2], cache.size, cache.dims[2])
-    nx, ny = cache.dims[0], cache.dims[1]
+    around = _around(cache, x)
     mom = cache.moments
     sh_basis(d, y)
     for j in range(SH_TERMS):  # the convolution's weight per harmonic, at d
@@ -424,13 +439,9 @@ def cached_light(cache, x, d, m, y):
     g = 0.0
     b = 0.0
     for corner in range(8):
-        i = ix1 if corner & 1 else ix0
-        j = iy1 if corner & 2 else iy0
-        k = iz1 if corner & 4 else iz0
-        wt = (fx if corner & 1 else 1.0 - fx) * (fy if corner & 2 else 1.0 - fy) * (fz if corner & 4 else 1.0 - fz)
+        c, wt = _corner(corner, around)
         if wt == 0.0:
             continue
-        c = i + nx * (j + ny * k)
         for h in range(SH_TERMS):
             r += wt * mom[c, 0, h] * y[h]
             g += wt * mom[c, 1, h] * y[h]

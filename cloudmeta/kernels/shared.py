@@ -8,7 +8,8 @@ the camera ray where its optical depth is tau instead of at a random depth: the 
 x, a direction from the phase function of a medium picked by sigma_s,m, then tracked vertices with their
 next-event estimates and the environment seen by an escaping flight, Russian roulette relative to the
 weight at x. Its mean is Q(tau) = sigma_s / sigma_t J(x), and a pixel's multiply scattered light is the
-integral of e^-tau Q(tau) over its ray's optical depth.
+integral of e^-tau Q(tau) over its ray's optical depth. With a cache of the deep orders (records.FluenceCache),
+a tail stops at its vertex of order cache.order and adds what that vertex scatters of the cached light instead.
 
 Random numbers are keyed by (seed, the sample ray's key, node, tail): a sample ray's tails depend on
 nothing else, so any number of threads and any tile give the same values.
@@ -38,8 +39,8 @@ def depth_tails(camera, scene, quad, settings, grid, volumes, cache, rows, cols,
     each node a with taus[a] < depth[q], the mean of tails[a] tails started where the ray's optical depth is
     taus[a] into q_mean[q, a] (RGB) and the variance of that mean into q_var[q, a]; NaN at nodes the ray does
     not reach. keys[q] keys the ray's random streams. camera: spp 1; settings a records.PathSettings (paths
-    unused); grid, volumes: the tracked flights' records; cache a records.FluenceCache (order 0: none); track a records.TrackWork (received, not allocated
-    here: kernels.multiple.tracked_vertex says why)."""
+    unused); grid, volumes: the tracked flights' records; cache a records.FluenceCache (order 0: none); track a
+    records.TrackWork (received, not allocated here: kernels.multiple.tracked_vertex says why)."""
     work = alloc_ray_work(scene)
     camera_work = alloc_ray_work(scene)
     d = np.empty(3)

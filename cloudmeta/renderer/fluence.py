@@ -8,6 +8,9 @@ does not depend on the thread count), and turns the sums into the field's moment
 Its resolution, photon count and where the photons deposit are the frame's FrameSettings.grid (its quality
 preset's, renderer.quality.PRESETS, or ``render.grid``'s). ``delta_split`` takes each phase function's forward peak
 out of the deposits and into the camera ray's extinction (docs/approximate.md).
+
+``fluence_cache`` traces the same photons, in the same batches, for the shared method (renderer.shared): the
+spherical harmonics of the scattered radiance, without the camera, which its path tails read beyond an order.
 """
 from __future__ import annotations
 
@@ -192,7 +195,7 @@ def no_cache(n_media) -> FluenceCache:
 
 
 def fluence_cache(scene, records, seed, order, cells, photons) -> FluenceCache:
-    """The shared method's records.FluenceCache: the fluence and flux of the scattered light (and the
+    """The shared method's records.FluenceCache: the spherical harmonics of the scattered light's radiance (and the
     environment's) in a grid of about ``cells`` cubic cells per side, from ``photons`` photons, for tails that trace
     the orders up to ``order`` and read the cache beyond it (order 0, or not below the scene's max_order: none)."""
     med = records.media

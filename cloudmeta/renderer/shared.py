@@ -192,8 +192,8 @@ class Lattice:
         def run(lo):
             hi = min(lo + CHUNK, n)
             depth_tails(p, rec, quad, self.path_settings, self.grid, self.volumes, self.cache, rows[lo:hi],
-                        cols[lo:hi], keys[lo:hi], TAUS, tails, self.seed, alloc_track_work(n_med), mean[lo:hi], var[lo:hi],
-                        depth[lo:hi])
+                        cols[lo:hi], keys[lo:hi], TAUS, tails, self.seed, alloc_track_work(n_med), mean[lo:hi],
+                        var[lo:hi], depth[lo:hi])
             return lo
         bar = progress_bar(n, progress, unit="ray", desc=desc)
         with ThreadPoolExecutor(numba.get_num_threads()) as pool:

@@ -2,10 +2,12 @@
 
 Per scene of validation.accuracy.approximate's report (512 wide unless --size), ``render_frame`` (seed 1, no
 error estimate) of the approximate mode's ``method: shared`` and of ``scattering: multiple`` with paths planned
-to the same ``--quality``, alternated (validation.common.alternate: one untimed round, then ``--repeats``);
+to the same ``--quality`` (or, with ``--against no-cache``, of the shared method without its cache of the deep
+orders, ``shared: {cache: 0}``), alternated (validation.common.alternate: one untimed round, then ``--repeats``);
 prints each one's median and range of wall time.
 
     python -m validation.performance.ms_shared_speed [--scenes deck_low_sun wispy_puffs] [--repeats 2]
+        [--against paths|no-cache]
 """
 from __future__ import annotations
 
@@ -28,12 +30,17 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--quality", default="draft")
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--against", choices=["paths", "no-cache"], default="paths")
     args, _ = parse(ap, argv)
     rows = []
     for name in args.scenes:
         shared = with_settings(scene_of(REPORT[name], args.size, "approximate", method="shared"), quality=args.quality)
-        paths = with_settings(scene_of(REPORT[name], args.size, "multiple"), quality=args.quality)
-        times = alternate({"shared": (shared,), "planned paths": (paths,)}, args.repeats, _run)
+        if args.against == "paths":
+            paths = with_settings(scene_of(REPORT[name], args.size, "multiple"), quality=args.quality)
+            other = ("planned paths", paths)
+        else:
+            other = ("no cache", with_settings(shared, shared=(None, None, 0)))
+        times = alternate({"shared": (shared,), other[0]: (other[1],)}, args.repeats, _run)
         for key, ts in times.items():
             ts = sorted(ts)
             median = ts[len(ts) // 2] if len(ts) % 2 else 0.5 * (ts[len(ts) // 2 - 1] + ts[len(ts) // 2])
