@@ -7,7 +7,7 @@ look); here each renders without the ambient (multiple scattering lights the clo
 default display (docs/display.md: white balance to the scene's light, auto exposure, the ACES output transform).
 The two pictures are put side by side. Prints each one's time, planned tails and estimated error.
 
-    python -m validation.tools.readme_pictures [--quality default] [--width 512] [--tails N] [--out PATH]
+    python -m validation.tools.readme_pictures [--quality default] [--width 512] [--tails N] [--cache K] [--out PATH]
 """
 from __future__ import annotations
 
@@ -24,14 +24,14 @@ from validation.common import ROOT, parse, parser, run_main
 SCENES = ("cumulus.yaml", "cumulus_backlit.yaml")
 
 
-def picture(name, quality, width, tails=None):
+def picture(name, quality, width, tails=None, cache=None):
     """(display codes H x W x 3 uint8, a dict of what the render measured) of one scene; ``tails`` per coarsest
-    sample ray, else planned to the preset's target."""
+    sample ray, else planned to the preset's target; ``cache``: render.shared.cache (None: the preset's)."""
     scene = cm.load_scene(ROOT / "scenes" / name)
     height = width * 3 // 4
     scene = replace(scene, ambient=None, image=replace(scene.image, width=width, height=height),
                     render=replace(scene.render, scattering="approximate", method="shared", quality=quality,
-                                   shared=None if tails is None else (None, int(tails))))
+                                   shared=(None, tails, cache)))
     t0 = time.perf_counter()
     result = cm.render_frame(scene, progress=False, seed=0, error=True)
     seconds = time.perf_counter() - t0
@@ -46,11 +46,13 @@ def main(argv=None):
     ap.add_argument("--quality", default="default")
     ap.add_argument("--width", type=int, default=512)
     ap.add_argument("--tails", type=int, default=None, help="a fixed count per coarsest sample ray (default: planned)")
+    ap.add_argument("--cache", type=int, default=None, help="render.shared.cache: the order the tails read the cache "
+                    "after (0: none; default: the preset's)")
     ap.add_argument("--out", default=str(ROOT / "docs" / "cumulus_pair.png"))
     args, _ = parse(ap, argv)
     pictures, rows = [], []
     for name in SCENES:
-        codes, row = picture(name, args.quality, args.width, args.tails)
+        codes, row = picture(name, args.quality, args.width, args.tails, args.cache)
         pictures.append(codes)
         rows.append(row)
         print(f"{name:22s} {row['seconds']:7.1f} s  tails {row['tails']}  estimated {row['estimated']:.3f} +- "
