@@ -31,7 +31,7 @@ from ..kernels.single import render_pixels
 from ..scene.limits import MAX_SHARED_TAILS
 from .pack import background_along, pixel_directions, single_octave
 from .fluence import fluence_cache
-from .shared import CACHE_SEED, SPLIT, plan_tails, shared_light
+from .shared import CACHE_MIN_SHARE, CACHE_SEED, SPLIT, deep_share, plan_tails, shared_light
 from .tracking import path_settings, paths_grid, paths_volumes
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
@@ -67,9 +67,12 @@ def approximate_light(scene, packed, settings, image, window, seed, progress=Fal
     if scene.render.method != "shared":
         return None
     shared = settings.shared
-    # the cache of the deep orders, one for the pilot and every sample ray (the same on every tile)
-    cache = fluence_cache(scene, packed.records, seed ^ CACHE_SEED, shared.cache_order, shared.cache_cells,
-                          shared.cache_photons)
+    # the cache of the deep orders, one for the pilot and every sample ray (the same on every tile); the preset's is
+    # left out where the orders beyond it carry too little of the light to pay for its photons
+    order = shared.cache_order
+    if order > 0 and not shared.cache_chosen and deep_share(scene, packed, seed, order) < CACHE_MIN_SHARE:
+        order = 0
+    cache = fluence_cache(scene, packed.records, seed ^ CACHE_SEED, order, shared.cache_cells, shared.cache_photons)
     plan = None
     tails = shared.tails
     if tails is None:

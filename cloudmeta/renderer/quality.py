@@ -83,13 +83,16 @@ class SharedSettings(NamedTuple):
     """The approximate mode's shared method (renderer.shared): the preset's stride where render.shared leaves it
     out; render.shared.tails, else None and the tails are planned to ``target``, the preset's paths target
     (renderer.shared.plan_tails); the cache of the deep orders (renderer.fluence.fluence_cache): the order the
-    tails trace up to (render.shared.cache, else the preset's; 0: no cache), its cells and photons."""
+    tails trace up to (render.shared.cache, else the preset's; 0: no cache), its cells and photons; cache_chosen:
+    whether the scene set the order (else the preset's cache is left out where the orders beyond it carry little
+    light: renderer.shared.deep_share)."""
     stride: int
     tails: int | None
     target: float
     cache_order: int
     cache_cells: int
     cache_photons: int
+    cache_chosen: bool = False
 
 
 @dataclass(frozen=True)
@@ -243,7 +246,8 @@ def resolve_settings(scene) -> FrameSettings:
                                                                    scene.image.height)),
                                 tails=None if tails is None else int(tails), target=float(preset.paths_target),
                                 cache_order=int(preset.cache[0] if order is None else order),
-                                cache_cells=int(preset.cache[1]), cache_photons=int(preset.cache[2]))
+                                cache_cells=int(preset.cache[1]), cache_photons=int(preset.cache[2]),
+                                cache_chosen=order is not None)
     calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
                  and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
     paths_target = None

@@ -65,6 +65,14 @@ NOISE_SHARE = 0.7
 EDGE_REFINED = 4.0
 MARGIN = 1.15
 MIN_TAILS = 64
+#: the cache of the deep orders (renderer.fluence.fluence_cache) that a preset names is built where the orders beyond
+#: its order carry at least this share of the light of orders >= 2 (deep_share: DEEP_RAYS^2 sample rays over the
+#: frame, DEEP_TAILS tails each, the tails cut at that order and not): below it, its photons cost more than the
+#: tails' walks they save (a deck under a low sun, 5 % of its light beyond order 5: 14.2 s with the cache against
+#: 12.5 s without; wispy puffs, 22 %: 14.6 s against 15.7 s; the front-lit cumulus, 45 %: 12.1 s against 22.3 s)
+CACHE_MIN_SHARE = 0.15
+DEEP_RAYS = 16
+DEEP_TAILS = 32
 #: a pixel bilinear between four corners of equal noise keeps on average (2/3)^2 of one corner's variance
 BILINEAR = 4.0 / 9.0
 
@@ -107,6 +115,25 @@ def plan_tails(scene, packed, stride, target, single_mean, seed, max_tails, cach
     tails = int(min(max(np.ceil(need), MIN_TAILS), max_tails))
     predicted = float(np.sqrt(refined * noise2 * PILOT_TAILS / tails)) / norm
     return TailPlan(tails=tails, target=float(target), scattered_mean=norm, predicted=predicted)
+
+
+def deep_share(scene, packed, seed, order) -> float:
+    """The share of the light of orders >= 2 (and the environment's) that comes from orders beyond ``order``, over
+    the frame: tails on a lattice of about DEEP_RAYS x DEEP_RAYS sample rays, cut at ``order`` and not (the same
+    random numbers: the difference is the deep orders' light alone); 0 where the tails find no light."""
+    h, w = scene.image.height, scene.image.width
+    step = max(1, -(-max(h, w) // DEEP_RAYS))
+    rr, cc = np.meshgrid(np.arange(0, h, step), np.arange(0, w, step), indexing="ij")
+    light = []
+    for max_order in (min(int(order), scene.render.max_order), scene.render.max_order):
+        lattice = Lattice(scene, packed, seed, max_order)
+        lattice.trace(np.stack([rr.ravel(), cc.ravel()], 1), tails_per_node(DEEP_TAILS))
+        ids = lattice.ids(rr.ravel(), cc.ravel())
+        valid = ~np.isnan(lattice.mean[ids, :, 0])
+        prof = _filled(np.nan_to_num(lattice.mean[ids]), valid)
+        light.append(float(np.einsum("nt,ntc->", depth_weights(lattice.depth[ids]), prof)))
+    cut, full = light
+    return max(0.0, 1.0 - cut / full) if full > 0.0 else 0.0
 
 
 def _edge_share(var, hit):

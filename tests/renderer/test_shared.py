@@ -119,6 +119,27 @@ def test_planned_tails(tmp_path):
     assert plan_tails(dark, pack_scene(dark, 0), 2, 0.1, 0.0, 0, 2 ** 24).tails == MIN_TAILS  # nothing scatters
 
 
+def test_cache_left_out_where_the_deep_orders_are_dim(tmp_path):
+    """The preset's cache of the deep orders is built only where the orders beyond its order carry at least
+    CACHE_MIN_SHARE of the light (deep_share): a dark cloud (albedo 0.3) renders bit-identically to ``cache: 0``,
+    the usual one to the preset's order set by the scene (which a scene always gets)."""
+    from cloudmeta.renderer.pack import pack_scene
+    from cloudmeta.renderer.shared import CACHE_MIN_SHARE, deep_share
+    images = {}
+    for albedo in (0.3, 0.95):
+        scenes = {key: shared_cloud(tmp_path, f"{{stride: 4, tails: 64{key}}}", albedo=albedo, size=16)
+                  for key in ("", ", cache: 0", ", cache: 5")}
+        packed = pack_scene(scenes[""], 0)
+        share = deep_share(scenes[""], packed, 0, 5)
+        assert (share < CACHE_MIN_SHARE) == (albedo < 0.5)
+        assert deep_share(scenes[""], packed, 0, 16) == 0.0  # cut at max_order: nothing beyond it
+        images[albedo] = {key: render(s, progress=False) for key, s in scenes.items()}
+    dark, bright = images[0.3], images[0.95]
+    np.testing.assert_array_equal(dark[""], dark[", cache: 0"])
+    assert not np.array_equal(dark[", cache: 5"], dark[", cache: 0"])
+    np.testing.assert_array_equal(bright[""], bright[", cache: 5"])
+
+
 def test_edge_share():
     """The plan's share of the pilot's variance in blocks whose corners partly miss the media: by hand on 3 x 3
     lattice points (four blocks), one corner point missing."""

@@ -3,18 +3,20 @@
 Per scene of validation.accuracy.approximate's report (512 wide unless --size), ``render_frame`` (seed 1, no
 error estimate) of the approximate mode's ``method: shared`` and of ``scattering: multiple`` with paths planned
 to the same ``--quality`` (or, with ``--against no-cache``, of the shared method without its cache of the deep
-orders, ``shared: {cache: 0}``), alternated (validation.common.alternate: one untimed round, then ``--repeats``);
+orders, ``shared: {cache: 0}``; with ``--against cache``, with the preset's cache built whatever share of the light
+it holds, ``shared: {cache: K}``), alternated (validation.common.alternate: one untimed round, then ``--repeats``);
 prints each one's median and range of wall time.
 
     python -m validation.performance.ms_shared_speed [--scenes deck_low_sun wispy_puffs] [--repeats 2]
-        [--against paths|no-cache]
+        [--against paths|no-cache|cache]
 """
 from __future__ import annotations
 
 import time
 
 import cloudmeta as cm
-from validation.accuracy.approximate import REPORT, scene_of
+from cloudmeta.renderer.quality import PRESETS
+from validation.accuracy.approximate import FIT, REPORT, scene_of
 from validation.common import alternate, parse, parser, run_main, with_settings
 
 
@@ -26,18 +28,21 @@ def _run(scene):
 
 def main(argv=None):
     ap = parser(__doc__)
-    ap.add_argument("--scenes", nargs="+", default=["deck_low_sun", "wispy_puffs"], choices=list(REPORT))
+    ap.add_argument("--scenes", nargs="+", default=["deck_low_sun", "wispy_puffs"], choices=list(REPORT) + list(FIT))
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--quality", default="draft")
     ap.add_argument("--repeats", type=int, default=2)
-    ap.add_argument("--against", choices=["paths", "no-cache"], default="paths")
+    ap.add_argument("--against", choices=["paths", "no-cache", "cache"], default="paths")
     args, _ = parse(ap, argv)
     rows = []
     for name in args.scenes:
-        shared = with_settings(scene_of(REPORT[name], args.size, "approximate", method="shared"), quality=args.quality)
+        path = {**REPORT, **FIT}[name]
+        shared = with_settings(scene_of(path, args.size, "approximate", method="shared"), quality=args.quality)
         if args.against == "paths":
-            paths = with_settings(scene_of(REPORT[name], args.size, "multiple"), quality=args.quality)
+            paths = with_settings(scene_of(path, args.size, "multiple"), quality=args.quality)
             other = ("planned paths", paths)
+        elif args.against == "cache":
+            other = ("cache always", with_settings(shared, shared=(None, None, PRESETS[args.quality].cache[0])))
         else:
             other = ("no cache", with_settings(shared, shared=(None, None, 0)))
         times = alternate({"shared": (shared,), other[0]: (other[1],)}, args.repeats, _run)
