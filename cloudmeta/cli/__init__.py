@@ -145,9 +145,18 @@ def _details(verbose, result):
         verbose(f"estimated relative RMSE {result.estimated:.2e} (target of {target}; {where})")
     plan = getattr(result, "plan", None)
     if plan is not None and hasattr(plan, "tails"):
+        from ..renderer.shared import CACHE_MIN_SHARE
+        share = plan.deep_share
+        if plan.cache_order:
+            cache = f"the orders beyond {plan.cache_order} from the cache of the deep orders" + (
+                "" if share is None else f" ({share:.0%} of the light)")
+        else:
+            cache = "no cache of the deep orders" + ("" if share is None else (
+                f" (the orders beyond the preset's cache order carry {share:.0%} of the light, under "
+                f"{CACHE_MIN_SHARE:.0%})"))
         verbose(f"shared light's tails planned to {plan.target:g}: {plan.tails} per coarsest sample ray, predicted "
                 f"noise {plan.predicted:.2e} of the scattered light (the sharing's bias beside it; "
-                "docs/approximate.md)")
+                f"docs/approximate.md); {cache}")
     elif plan is not None:
         h, w = result.image.shape[:2]
         verbose(f"multiple-scattering paths planned to {plan.target:g}: {plan.mean_paths(h, w):.0f} per pixel on "

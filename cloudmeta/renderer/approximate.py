@@ -19,7 +19,7 @@ relative to the scattered light (docs/approximate.md says how good that estimate
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -69,14 +69,16 @@ def approximate_light(scene, packed, settings, image, window, seed, progress=Fal
     shared = settings.shared
     # the cache of the deep orders, one for the pilot and every sample ray (the same on every tile); the preset's is
     # left out where the orders beyond it carry too little of the light to pay for its photons
-    order = shared.cache_order
-    if order > 0 and not shared.cache_chosen and deep_share(scene, packed, seed, order) < CACHE_MIN_SHARE:
-        order = 0
+    order, share = shared.cache_order, None
+    if order > 0 and not shared.cache_chosen:
+        share = deep_share(scene, packed, seed, order)
+        order = order if share >= CACHE_MIN_SHARE else 0
     cache = fluence_cache(scene, packed.records, seed ^ CACHE_SEED, order, shared.cache_cells, shared.cache_photons)
     plan = None
     tails = shared.tails
     if tails is None:
         plan = plan_tails(scene, packed, shared.stride, shared.target, single_mean, seed, MAX_SHARED_TAILS, cache)
+        plan = replace(plan, cache_order=int(cache.order), deep_share=share)
         tails = plan.tails
     light, stderr, _ = shared_light(scene, packed, window, image[..., 3], seed, shared.stride, tails, SPLIT,
                                     progress=progress, cache=cache)

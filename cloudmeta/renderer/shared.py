@@ -69,7 +69,7 @@ MIN_TAILS = 64
 #: its order carry at least this share of the light of orders >= 2 (deep_share: DEEP_RAYS^2 sample rays over the
 #: frame, DEEP_TAILS tails each, the tails cut at that order and not): below it, its photons cost more than the
 #: tails' walks they save (a deck under a low sun, 5 % of its light beyond order 5: 14.2 s with the cache against
-#: 12.5 s without; wispy puffs, 22 %: 14.6 s against 15.7 s; the front-lit cumulus, 45 %: 12.1 s against 22.3 s)
+#: 12.5 s without; wispy puffs, 19 %: 14.6 s against 15.7 s; the front-lit cumulus, 45 %: 12.1 s against 22.3 s)
 CACHE_MIN_SHARE = 0.15
 DEEP_RAYS = 16
 DEEP_TAILS = 32
@@ -81,11 +81,15 @@ BILINEAR = 4.0 / 9.0
 class TailPlan:
     """Planned tails (``plan_tails``): ``tails`` per coarsest sample ray, for the image's noise to be
     NOISE_SHARE of ``target`` relative to the frame's scattered light; what the pilot measured (the frame's mean
-    scattered light, single and shared, the target's denominator) and the relative noise it predicts."""
+    scattered light, single and shared, the target's denominator) and the relative noise it predicts; the order
+    from which the tails read the cache of the deep orders (0: none), and the share of the light beyond the
+    preset's order that decided it (deep_share; None: the scene set the order)."""
     tails: int
     target: float
     scattered_mean: float
     predicted: float
+    cache_order: int = 0
+    deep_share: float | None = None
 
 
 def plan_tails(scene, packed, stride, target, single_mean, seed, max_tails, cache=None) -> TailPlan:

@@ -9,8 +9,8 @@ import pytest
 
 from cloudmeta.errors import SceneError
 from cloudmeta.renderer import render, render_frame
-from cloudmeta.renderer.shared import (MIN_TAILS, NOISE_SHARE, TAUS, TailPlan, depth_weights, node_weights,
-                                      tails_per_node)
+from cloudmeta.renderer.shared import (CACHE_MIN_SHARE, MIN_TAILS, NOISE_SHARE, TAUS, TailPlan, depth_weights,
+                                      node_weights, tails_per_node)
 from cloudmeta.scene import load_scene
 from tests.renderer.test_approximate import cloud
 
@@ -100,6 +100,7 @@ def test_planned_tails(tmp_path):
     frame = render_frame(s, progress=False, error=True)
     plan = frame.plan
     assert isinstance(plan, TailPlan) and plan.target == 0.10 and plan.tails > MIN_TAILS
+    assert plan.cache_order == 5 and plan.deep_share >= CACHE_MIN_SHARE  # draft's cache, where it pays
     tile = render(s, progress=False, rows=(7, 19), columns=(2, 13))
     np.testing.assert_array_equal(tile, frame.image[7:19, 2:13])
     image = frame.image.astype(np.float64)
@@ -124,7 +125,7 @@ def test_cache_left_out_where_the_deep_orders_are_dim(tmp_path):
     CACHE_MIN_SHARE of the light (deep_share): a dark cloud (albedo 0.3) renders bit-identically to ``cache: 0``,
     the usual one to the preset's order set by the scene (which a scene always gets)."""
     from cloudmeta.renderer.pack import pack_scene
-    from cloudmeta.renderer.shared import CACHE_MIN_SHARE, deep_share
+    from cloudmeta.renderer.shared import deep_share
     images = {}
     for albedo in (0.3, 0.95):
         scenes = {key: shared_cloud(tmp_path, f"{{stride: 4, tails: 64{key}}}", albedo=albedo, size=16)
@@ -138,6 +139,18 @@ def test_cache_left_out_where_the_deep_orders_are_dim(tmp_path):
     np.testing.assert_array_equal(dark[""], dark[", cache: 0"])
     assert not np.array_equal(dark[", cache: 5"], dark[", cache: 0"])
     np.testing.assert_array_equal(bright[""], bright[", cache: 5"])
+
+
+def test_verbose_says_whether_the_cache_was_built(tmp_path, capsys):
+    """``-v`` prints the plan of the tails and what became of the preset's cache of the deep orders, with the share
+    of the light that decided it."""
+    from cloudmeta.cli import main
+    for albedo, said in ((0.95, "the orders beyond 5 from the cache of the deep orders ("),
+                         (0.3, "no cache of the deep orders (the orders beyond the preset's cache order carry")):
+        s = shared_cloud(tmp_path, "{stride: 2}", size=16, albedo=albedo)
+        assert main(["render", str(s.path), "-o", str(tmp_path / f"{albedo}.exr"), "-q", "-v"]) == 0
+        out = capsys.readouterr()
+        assert "tails planned to 0.1" in out.out + out.err and said in out.out + out.err
 
 
 def test_edge_share():
