@@ -145,7 +145,6 @@ def _details(verbose, result):
         verbose(f"estimated relative RMSE {result.estimated:.2e} (target of {target}; {where})")
     plan = getattr(result, "plan", None)
     if plan is not None and hasattr(plan, "tails"):
-        from ..renderer.shared import CACHE_MIN_SHARE
         share = plan.deep_share
         if plan.cache_order:
             cache = f"the orders beyond {plan.cache_order} from the cache of the deep orders" + (
@@ -153,7 +152,7 @@ def _details(verbose, result):
         else:
             cache = "no cache of the deep orders" + ("" if share is None else (
                 f" (the orders beyond the preset's cache order carry {share:.0%} of the light, under "
-                f"{CACHE_MIN_SHARE:.0%})"))
+                f"{settings.shared.cache_min_share:.0%})"))
         verbose(f"shared light's tails planned to {plan.target:g}: {plan.tails} per coarsest sample ray, predicted "
                 f"noise {plan.predicted:.2e} of the scattered light (the sharing's bias beside it; "
                 f"docs/approximate.md); {cache}")

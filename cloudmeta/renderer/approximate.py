@@ -31,7 +31,7 @@ from ..kernels.single import render_pixels
 from ..scene.limits import MAX_SHARED_TAILS
 from .pack import background_along, pixel_directions, single_octave
 from .fluence import fluence_cache
-from .shared import CACHE_MIN_SHARE, CACHE_SEED, SPLIT, deep_share, plan_tails, shared_light
+from .shared import CACHE_SEED, SPLIT, deep_share, plan_tails, shared_light
 from .tracking import path_settings, paths_grid, paths_volumes
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
@@ -72,7 +72,7 @@ def approximate_light(scene, packed, settings, image, window, seed, progress=Fal
     order, share = shared.cache_order, None
     if order > 0 and not shared.cache_chosen:
         share = deep_share(scene, packed, seed, order)
-        order = order if share >= CACHE_MIN_SHARE else 0
+        order = order if share >= shared.cache_min_share else 0
     cache = fluence_cache(scene, packed.records, seed ^ CACHE_SEED, order, shared.cache_cells, shared.cache_photons)
     plan = None
     tails = shared.tails

@@ -33,7 +33,10 @@ growth          1       1       1       0          the step limits max_tau and m
 (cache)         5       6       8       none       the shared method's tails trace the orders up to this
                 48^3    48^3    48^3               one and read the cache of the rest, built by this
                 2^20    2^21    2^22               many cells and photons (renderer.fluence;
-                                                   ``render.shared.cache`` sets the order, 0: none)
+                0.15    0.05    0.05               ``render.shared.cache`` sets the order, 0: none)
+                                                   where the orders beyond it carry at least this share
+                                                   of the light (renderer.shared.deep_share): a preset
+                                                   with more tails per photon gains at a lower share
 (paths)         0.10    0.03    0.01    0.003      multiple scattering: the relative RMSE of the paths'
                                                    part against the scattered light that the planned
                                                    paths aim at (renderer.multiple; ``render.ms_spp``
@@ -84,8 +87,8 @@ class SharedSettings(NamedTuple):
     out; render.shared.tails, else None and the tails are planned to ``target``, the preset's paths target
     (renderer.shared.plan_tails); the cache of the deep orders (renderer.fluence.fluence_cache): the order the
     tails trace up to (render.shared.cache, else the preset's; 0: no cache), its cells and photons; cache_chosen:
-    whether the scene set the order (else the preset's cache is left out where the orders beyond it carry little
-    light: renderer.shared.deep_share)."""
+    whether the scene set the order, else the preset's cache is left out where the orders beyond it carry less than
+    cache_min_share of the light (renderer.shared.deep_share)."""
     stride: int
     tails: int | None
     target: float
@@ -93,6 +96,7 @@ class SharedSettings(NamedTuple):
     cache_cells: int
     cache_photons: int
     cache_chosen: bool = False
+    cache_min_share: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -111,9 +115,9 @@ class Preset:
     #: the approximate mode's shared method: pixels between the coarsest sample rays at a longer side of
     #: SHARED_SIDE (renderer.shared; its tails are planned to ``paths_target``)
     shared: int
-    #: the shared method's cache of the deep orders: (order, cells, photons); order 0: none
-    #: (renderer.fluence.fluence_cache)
-    cache: tuple = (0, 48, 1 << 20)
+    #: the shared method's cache of the deep orders: (order, cells, photons, the least share of the light beyond the
+    #: order for which it is built); order 0: none (renderer.fluence.fluence_cache, renderer.shared.deep_share)
+    cache: tuple = (0, 48, 1 << 20, 0.0)
     #: multiple scattering: the relative RMSE of the image's Monte Carlo part, against the frame's scattered
     #: light, that the planned paths aim at (renderer.multiple); None: no plan, ``render.ms_spp`` or its fallback
     paths_target: float | None = None
@@ -131,13 +135,13 @@ class Preset:
 PRESETS = {
     "draft": Preset(paths_target=0.10, target=3e-3, start=1.0, grid=(24, 1 << 21), quadrature=dict(
         tolerance=3e-3, max_tau=1.0, max_length=1 / 4, max_angle=0.4, cutoff=1e-4, root_tolerance=1e-9, growth=1.0),
-        shared=8, cache=(5, 48, 1 << 20)),
+        shared=8, cache=(5, 48, 1 << 20, 0.15)),
     "default": Preset(paths_target=0.03, target=1e-3, start=0.0, grid=(40, 1 << 23), quadrature=dict(
         tolerance=1e-3, max_tau=0.5, max_length=1 / 16, max_angle=0.2, cutoff=1e-4, root_tolerance=1e-9,
-        growth=1.0), shared=4, cache=(6, 48, 1 << 21)),
+        growth=1.0), shared=4, cache=(6, 48, 1 << 21, 0.05)),
     "fine": Preset(paths_target=0.01, target=3e-4, start=-1.0, grid=(56, 1 << 25), quadrature=dict(
         tolerance=3e-4, max_tau=0.175, max_length=1 / 32, max_angle=0.1, cutoff=1e-5, root_tolerance=1e-9,
-        growth=1.0), shared=2, cache=(8, 48, 1 << 22)),
+        growth=1.0), shared=2, cache=(8, 48, 1 << 22, 0.05)),
     "reference": Preset(paths_target=0.003, target=None, start=None, grid=(56, 1 << 25), quadrature=dict(
         tolerance=1e-6, max_tau=0.1, max_length=1 / 128, max_angle=0.025, cutoff=0.0, root_tolerance=1e-9,
         growth=0.0), shared=1),
@@ -247,7 +251,7 @@ def resolve_settings(scene) -> FrameSettings:
                                 tails=None if tails is None else int(tails), target=float(preset.paths_target),
                                 cache_order=int(preset.cache[0] if order is None else order),
                                 cache_cells=int(preset.cache[1]), cache_photons=int(preset.cache[2]),
-                                cache_chosen=order is not None)
+                                cache_chosen=order is not None, cache_min_share=float(preset.cache[3]))
     calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
                  and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
     paths_target = None

@@ -9,8 +9,8 @@ import pytest
 
 from cloudmeta.errors import SceneError
 from cloudmeta.renderer import render, render_frame
-from cloudmeta.renderer.shared import (CACHE_MIN_SHARE, MIN_TAILS, NOISE_SHARE, TAUS, TailPlan, depth_weights,
-                                      node_weights, tails_per_node)
+from cloudmeta.renderer.shared import (MIN_TAILS, NOISE_SHARE, TAUS, TailPlan, depth_weights, node_weights,
+                                      tails_per_node)
 from cloudmeta.scene import load_scene
 from tests.renderer.test_approximate import cloud
 
@@ -100,7 +100,7 @@ def test_planned_tails(tmp_path):
     frame = render_frame(s, progress=False, error=True)
     plan = frame.plan
     assert isinstance(plan, TailPlan) and plan.target == 0.10 and plan.tails > MIN_TAILS
-    assert plan.cache_order == 5 and plan.deep_share >= CACHE_MIN_SHARE  # draft's cache, where it pays
+    assert plan.cache_order == 5 and plan.deep_share >= frame.settings.shared.cache_min_share  # draft's, where it pays
     tile = render(s, progress=False, rows=(7, 19), columns=(2, 13))
     np.testing.assert_array_equal(tile, frame.image[7:19, 2:13])
     image = frame.image.astype(np.float64)
@@ -122,9 +122,10 @@ def test_planned_tails(tmp_path):
 
 def test_cache_left_out_where_the_deep_orders_are_dim(tmp_path):
     """The preset's cache of the deep orders is built only where the orders beyond its order carry at least
-    CACHE_MIN_SHARE of the light (deep_share): a dark cloud (albedo 0.3) renders bit-identically to ``cache: 0``,
+    the preset's share of the light (deep_share): a dark cloud (albedo 0.3) renders bit-identically to ``cache: 0``,
     the usual one to the preset's order set by the scene (which a scene always gets)."""
     from cloudmeta.renderer.pack import pack_scene
+    from cloudmeta.renderer.quality import PRESETS
     from cloudmeta.renderer.shared import deep_share
     images = {}
     for albedo in (0.3, 0.95):
@@ -132,7 +133,7 @@ def test_cache_left_out_where_the_deep_orders_are_dim(tmp_path):
                   for key in ("", ", cache: 0", ", cache: 5")}
         packed = pack_scene(scenes[""], 0)
         share = deep_share(scenes[""], packed, 0, 5)
-        assert (share < CACHE_MIN_SHARE) == (albedo < 0.5)
+        assert (share < PRESETS["draft"].cache[3]) == (albedo < 0.5)
         assert deep_share(scenes[""], packed, 0, 16) == 0.0  # cut at max_order: nothing beyond it
         images[albedo] = {key: render(s, progress=False) for key, s in scenes.items()}
     dark, bright = images[0.3], images[0.95]
