@@ -69,7 +69,7 @@ MIN_TAILS = 64
 #: frame, DEEP_TAILS tails each; the preset builds its cache where the share is at least its own threshold
 #: (renderer.quality: below it the photons cost more than the tails' walks they save; at `draft` a deck under a low
 #: sun, 5 % beyond order 5: 14.2 s with the cache against 12.5 s without; wispy puffs, 19 %: 14.6 s against 15.7 s;
-#: at `default` the wisps, 13 % beyond order 6: 145 s with it against 227 s without)
+#: at `default` the wisps, 13 % beyond order 6: 151 s with it against 227 s without)
 DEEP_RAYS = 16
 DEEP_TAILS = 32
 #: a pixel bilinear between four corners of equal noise keeps on average (2/3)^2 of one corner's variance
