@@ -31,7 +31,7 @@ from ..kernels.single import render_pixels
 from ..scene.limits import MAX_SHARED_TAILS
 from .pack import background_along, pixel_directions, single_octave
 from .fluence import fluence_cache
-from .shared import CACHE_SEED, SPLIT, deep_share, plan_tails, shared_light
+from .shared import CACHE_SEED, SPLIT, deep_share, plan_tails, shared_light, tail_tracks
 from .tracking import path_settings, paths_grid, paths_volumes
 
 #: the approximation's error estimate: cloud pixels sampled, unbiased paths per sampled pixel (at first)
@@ -69,19 +69,21 @@ def approximate_light(scene, packed, settings, image, window, seed, progress=Fal
     shared = settings.shared
     # the cache of the deep orders, one for the pilot and every sample ray (the same on every tile); the preset's is
     # left out where the orders beyond it carry too little of the light to pay for its photons
+    tracks = tail_tracks(scene, packed)  # every lattice's grid and light volumes, built once
     order, share = shared.cache_order, None
     if order > 0 and not shared.cache_chosen:
-        share = deep_share(scene, packed, seed, order)
+        share = deep_share(scene, packed, seed, order, tracks)
         order = order if share >= shared.cache_min_share else 0
     cache = fluence_cache(scene, packed.records, seed ^ CACHE_SEED, order, shared.cache_cells, shared.cache_photons)
     plan = None
     tails = shared.tails
     if tails is None:
-        plan = plan_tails(scene, packed, shared.stride, shared.target, single_mean, seed, MAX_SHARED_TAILS, cache)
+        plan = plan_tails(scene, packed, shared.stride, shared.target, single_mean, seed, MAX_SHARED_TAILS, cache,
+                          tracks)
         plan = replace(plan, cache_order=int(cache.order), deep_share=share)
         tails = plan.tails
     light, stderr, _ = shared_light(scene, packed, window, image[..., 3], seed, shared.stride, tails, SPLIT,
-                                    progress=progress, cache=cache)
+                                    progress=progress, cache=cache, tracks=tracks)
     return light, stderr, plan
 
 

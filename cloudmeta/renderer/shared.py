@@ -91,50 +91,46 @@ class TailPlan:
     deep_share: float | None = None
 
 
-def plan_tails(scene, packed, stride, target, single_mean, seed, max_tails, cache=None) -> TailPlan:
+def plan_tails(scene, packed, stride, target, single_mean, seed, max_tails, cache=None, tracks=None) -> TailPlan:
     """The tails per coarsest sample ray that bring the shared light's noise to NOISE_SHARE of ``target`` relative
     RMSE against the frame's scattered light (``single_mean``, the pilot's mean single-scattered radiance over
     pixels and RGB, plus the shared light's mean that this pilot measures), from a pilot on the sample rays every
     2 ``stride`` pixels of the whole frame: the same plan for every tile. cache: the tails' records.FluenceCache
-    (renderer.fluence.fluence_cache; None: none)."""
+    (renderer.fluence.fluence_cache; None: none); tracks: tail_tracks's (None: built here)."""
     h, w = scene.image.height, scene.image.width
     step = 2 * int(stride)
     rr, cc = np.meshgrid(np.arange(0, h, step), np.arange(0, w, step), indexing="ij")
-    pilot = Lattice(scene, packed, seed, scene.render.max_order, cache)
+    pilot = Lattice(scene, packed, seed, scene.render.max_order, cache, tracks)
     pilot.trace(np.stack([rr.ravel(), cc.ravel()], 1), tails_per_node(PILOT_TAILS))
-    ids = pilot.ids(rr.ravel(), cc.ravel())
-    valid = ~np.isnan(pilot.mean[ids, :, 0])
-    prof = _filled(np.nan_to_num(pilot.mean[ids]), valid)
-    prof_var = _filled(np.nan_to_num(pilot.var[ids]), valid)
-    dw = depth_weights(pilot.depth[ids])
+    prof, prof_var, dw, depth = pilot.profiles(rr.ravel(), cc.ravel())
     light = float(np.einsum("nt,ntc->nc", dw, prof).mean())  # over the frame's pixels (a miss adds 0) and RGB
     var = np.einsum("nt,ntc->n", dw * dw, prof_var).reshape(rr.shape) / 3.0  # per ray, over RGB
     noise2 = BILINEAR * float(var.mean())  # per pixel and channel
     norm = float(single_mean) + light
     if not norm > 0.0 or not noise2 > 0.0:
         return TailPlan(tails=MIN_TAILS, target=float(target), scattered_mean=max(norm, 0.0), predicted=0.0)
-    refined = 1.0 + EDGE_REFINED * _edge_share(var, pilot.depth[ids].reshape(rr.shape) > 0.0)
+    refined = 1.0 + EDGE_REFINED * _edge_share(var, depth.reshape(rr.shape) > 0.0)
     need = refined * MARGIN * MARGIN * noise2 * PILOT_TAILS / (NOISE_SHARE * target * norm) ** 2
     tails = int(min(max(np.ceil(need), MIN_TAILS), max_tails))
     predicted = float(np.sqrt(refined * noise2 * PILOT_TAILS / tails)) / norm
     return TailPlan(tails=tails, target=float(target), scattered_mean=norm, predicted=predicted)
 
 
-def deep_share(scene, packed, seed, order) -> float:
+def deep_share(scene, packed, seed, order, tracks=None) -> float:
     """The share of the light of orders >= 2 (and the environment's) that comes from orders beyond ``order``, over
     the frame: tails on a lattice of about DEEP_RAYS x DEEP_RAYS sample rays, cut at ``order`` and not (the same
-    random numbers: the difference is the deep orders' light alone); 0 where the tails find no light."""
+    random numbers: the difference is the deep orders' light alone); 0 where the tails find no light. tracks:
+    tail_tracks's (None: built here)."""
     h, w = scene.image.height, scene.image.width
     step = max(1, -(-max(h, w) // DEEP_RAYS))
     rr, cc = np.meshgrid(np.arange(0, h, step), np.arange(0, w, step), indexing="ij")
+    tracks = tail_tracks(scene, packed) if tracks is None else tracks
     light = []
     for max_order in (min(int(order), scene.render.max_order), scene.render.max_order):
-        lattice = Lattice(scene, packed, seed, max_order)
+        lattice = Lattice(scene, packed, seed, max_order, tracks=tracks)
         lattice.trace(np.stack([rr.ravel(), cc.ravel()], 1), tails_per_node(DEEP_TAILS))
-        ids = lattice.ids(rr.ravel(), cc.ravel())
-        valid = ~np.isnan(lattice.mean[ids, :, 0])
-        prof = _filled(np.nan_to_num(lattice.mean[ids]), valid)
-        light.append(float(np.einsum("nt,ntc->", depth_weights(lattice.depth[ids]), prof)))
+        prof, _, dw, _ = lattice.profiles(rr.ravel(), cc.ravel())
+        light.append(float(np.einsum("nt,ntc->", dw, prof)))
     cut, full = light
     return max(0.0, 1.0 - cut / full) if full > 0.0 else 0.0
 
@@ -183,20 +179,25 @@ def tails_per_node(tails, taus=TAUS):
     return np.maximum(np.rint(tails * w / w.sum()), 2).astype(np.int64)
 
 
+def tail_tracks(scene, packed):
+    """(majorant grid, light volumes) of the tails' tracked flights: the same for every lattice of a frame, whatever
+    its order or cache, so built once. The tails are tracked from their first flight whatever render.track_from says
+    (it places the unbiased paths' exact flights), so they are built here, not by tracking.paths_grid."""
+    grid = majorant_grid(scene, packed.records.media)
+    tracked = PathSettings(max_order=int(scene.render.max_order), rr_order=RR_ORDER, paths=1, track_from=2)
+    return grid, paths_volumes(scene, packed, tracked)
+
+
 class Lattice:
     """The sample rays computed so far, by lattice point (row, column): their profiles and depths."""
 
-    def __init__(self, scene, packed, seed, max_order, cache=None):
+    def __init__(self, scene, packed, seed, max_order, cache=None, tracks=None):
         self.packed = packed
         self.cache = no_cache(n_media(packed.records.media)) if cache is None else cache
         self.camera = packed.camera._replace(spp=1)
         self.seed = np.int64(seed ^ TAIL_SEED)
-        self.grid = majorant_grid(scene, packed.records.media)
-        # the tails are tracked from their first flight whatever render.track_from says (it places the unbiased
-        # paths' exact flights), so their grid and light volumes are built here, not by tracking.paths_grid
-        base = PathSettings(max_order=int(max_order), rr_order=RR_ORDER, paths=1, track_from=2)
-        self.volumes = paths_volumes(scene, packed, base)
-        self.path_settings = base
+        self.grid, self.volumes = tail_tracks(scene, packed) if tracks is None else tracks
+        self.path_settings = PathSettings(max_order=int(max_order), rr_order=RR_ORDER, paths=1, track_from=2)
         self.index = {}
         self.mean = np.zeros((0, len(TAUS), 3))
         self.var = np.zeros((0, len(TAUS), 3))
@@ -240,18 +241,28 @@ class Lattice:
     def ids(self, rows, cols):
         return np.array([self.index[(int(r), int(c))] for r, c in zip(rows, cols)], np.int64)
 
+    def profiles(self, rows, cols):
+        """(profiles (n, T, 3), their variances, depth_weights (n, T), depths (n,)) of the traced points (rows[k],
+        cols[k]), the nodes a ray does not reach filled (_filled)."""
+        ids = self.ids(rows, cols)
+        valid = ~np.isnan(self.mean[ids, :, 0])
+        return (_filled(np.nan_to_num(self.mean[ids]), valid), _filled(np.nan_to_num(self.var[ids]), valid),
+                depth_weights(self.depth[ids]), self.depth[ids])
 
-def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, progress=False, cache=None):
+
+def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, progress=False, cache=None,
+                 tracks=None):
     """(light, stderr, sample rays): the shared method's light (tile_h x tile_w x 3) of the tile ``window``
     ((r_lo, r_hi), (c_lo, c_hi)), whose single-scattering alpha is ``alpha`` (tile_h x tile_w): the module
     docstring's three steps, with sample rays
     every ``stride`` pixels (a power of 2), about ``tails`` tails per sample ray, blocks split where their
     corners differ by more than ``threshold`` of their light, the tails reading ``cache`` (a records.FluenceCache,
-    or None); stderr: the tails' noise in it, per pixel."""
+    or None), their flights tracked through ``tracks`` (tail_tracks; None: built here); stderr: the tails' noise in
+    it, per pixel."""
     (r_lo, r_hi), (c_lo, c_hi) = window
     h, w = scene.image.height, scene.image.width
     s0 = int(stride)
-    lattice = Lattice(scene, packed, seed, scene.render.max_order, cache)
+    lattice = Lattice(scene, packed, seed, scene.render.max_order, cache, tracks)
     # the depth pass: which pixels of the level-0 blocks that the tile touches meet a medium
     br0, br1 = r_lo // s0, (r_hi - 1) // s0 + 1
     bc0, bc1 = c_lo // s0, (c_hi - 1) // s0 + 1
