@@ -374,5 +374,5 @@ def pilot_quality(scene, packed, settings):
     scale = light_scale(scene, packed, settings.shadows)
     quality = replace(settings.quadrature, light_scale=scale.scale)
     if scale.scale > 0.0 and settings.calibrate:
-        return calibrate(scene, packed, quality, scale, settings.preset)
+        return calibrate(scene, packed, quality, scale, settings.calibration_preset())
     return quality, scale

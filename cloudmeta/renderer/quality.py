@@ -74,7 +74,7 @@ seen through less than ``cutoff`` of view transmittance is not shaded (like the 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 from ..kernels.fluence import COLLISIONS, FLIGHTS
@@ -147,6 +147,11 @@ PRESETS = {
         growth=0.0), shared=1),
 }
 assert tuple(PRESETS) == QUALITIES, "every quality name of the scene's vocabulary has a preset"
+#: the shared method's quadrature (its exact order 1) is calibrated to this share of the preset's paths target
+#: instead of the preset's own target: the calibration keeps it at most half that (renderer.calibrate SHARE), so it
+#: takes at most (0.5 x 0.3)^2 = 2.25 % of the image's error variance, where the preset's own target (draft 3e-3
+#: against the tails' 0.10) cost up to half the frame's time for 0.03 % of it (docs/approximate.md)
+SHARED_QUADRATURE = 0.3
 #: the quadrature keys that, given explicitly, turn calibration off (the user chose the settings)
 QUADRATURE_KEYS = ("tolerance", "max_tau", "max_length", "max_angle", "cutoff")
 
@@ -196,14 +201,21 @@ class FrameSettings:
     #: multiple scattering with planned paths: the relative RMSE they aim at (render.error where given, else the
     #: preset's); None in every other case
     paths_target: float | None = None
+    #: the relative RMSE that the calibration keeps the quadrature to: the preset's target, or with the shared
+    #: method SHARED_QUADRATURE of its paths target (None: no target)
+    quadrature_target: float | None = None
 
     @property
     def target(self):
-        """The relative RMSE the frame aims at: render.error where given, else the preset's (None: none); with
+        """The relative RMSE the frame aims at: render.error where given, else the quadrature's (None: none); with
         planned multiple-scattering paths, theirs (the paths' noise is then most of the image's error)."""
         if self.paths_target is not None:
             return self.paths_target
-        return self.error if self.error is not None else self.preset.target
+        return self.error if self.error is not None else self.quadrature_target
+
+    def calibration_preset(self):
+        """The preset with the target its calibration keeps (renderer.calibrate)."""
+        return replace(self.preset, target=self.quadrature_target)
 
 
 def resolve_quality(settings: RenderSettings, diagonal: float) -> Quality:
@@ -244,6 +256,7 @@ def resolve_settings(scene) -> FrameSettings:
         grid = (int(cells or preset.grid[0]), int(photons or preset.grid[1]),
                 COLLISIONS if deposit == "collisions" else FLIGHTS)
     shared = None
+    quadrature_target = preset.target
     if r.scattering == "approximate" and r.method == "shared":
         stride, tails, order = (tuple(r.shared or ()) + (None, None, None))[:3]  # (stride, tails) still reads
         shared = SharedSettings(stride=int(stride or shared_stride(preset.shared, scene.image.width,
@@ -252,6 +265,8 @@ def resolve_settings(scene) -> FrameSettings:
                                 cache_order=int(preset.cache[0] if order is None else order),
                                 cache_cells=int(preset.cache[1]), cache_photons=int(preset.cache[2]),
                                 cache_chosen=order is not None, cache_min_share=float(preset.cache[3]))
+        if preset.target is not None:
+            quadrature_target = SHARED_QUADRATURE * float(preset.paths_target)
     calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
                  and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
     paths_target = None
@@ -260,4 +275,5 @@ def resolve_settings(scene) -> FrameSettings:
     return FrameSettings(quality=r.quality, preset=preset, shadows=ShadowMode(r.shadows),
                          shadow_map=int(r.shadow_map or SHADOW_MAP_RESOLUTION),
                          quadrature=resolve_quality(r, scene.length_scale()), calibrate=bool(calibrate),
-                         error=r.error, grid=grid, shared=shared, paths=r.ms_spp, paths_target=paths_target)
+                         error=r.error, grid=grid, shared=shared, paths=r.ms_spp, paths_target=paths_target,
+                         quadrature_target=quadrature_target)
