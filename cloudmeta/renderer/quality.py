@@ -12,6 +12,8 @@ key             draft   default fine    reference  meaning
 =============== ======= ======= ======= ========== ====================================================
 (target)        3e-3    1e-3    3e-4    -          the image's RMSE against the converged image over its
                                                    mean scattered radiance, that the preset keeps
+                                                   (the shared method's quadrature: SHARED_QUADRATURE of
+                                                   the paths target below, 0.03 / 0.009 / 0.003)
 tolerance       3e-3    1e-3    3e-4    1e-6       error allowed in the light J per unit of optical
                                                    depth (weighted by the view transmittance), relative
                                                    to the frame's scattered-light scale (renderer.pilot)
