@@ -152,7 +152,7 @@ assert tuple(PRESETS) == QUALITIES, "every quality name of the scene's vocabular
 #: the shared method's quadrature (its exact order 1) is calibrated to this share of the preset's paths target
 #: instead of the preset's own target: the calibration keeps it at most half that (renderer.calibrate SHARE), so it
 #: takes at most (0.5 x 0.3)^2 = 2.25 % of the image's error variance, where the preset's own target (draft 3e-3
-#: against the tails' 0.10) cost up to half the frame's time for 0.03 % of it (docs/approximate.md)
+#: against the tails' 0.10) cost up to two thirds of the frame's time for 0.02 % of it (docs/approximate.md)
 SHARED_QUADRATURE = 0.3
 #: the quadrature keys that, given explicitly, turn calibration off (the user chose the settings)
 QUADRATURE_KEYS = ("tolerance", "max_tau", "max_length", "max_angle", "cutoff")

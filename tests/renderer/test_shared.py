@@ -95,7 +95,7 @@ def test_quadrature_calibrated_to_a_share_of_the_tails_target(tmp_path, monkeypa
     (against `reference`'s, the same tails) stays within half of it."""
     from dataclasses import replace
     from cloudmeta.renderer import calibrate
-    from cloudmeta.renderer.quality import PRESETS, SHARED_QUADRATURE
+    from cloudmeta.renderer.quality import PRESETS, SHARED_QUADRATURE, resolve_settings
     s = shared_cloud(tmp_path, "{stride: 2, tails: 64, cache: 0}", size=24)  # the same tails at every quality
     seen = []
     real = calibrate.calibrate
@@ -104,17 +104,12 @@ def test_quadrature_calibrated_to_a_share_of_the_tails_target(tmp_path, monkeypa
     assert frame.settings.quadrature_target == pytest.approx(SHARED_QUADRATURE * PRESETS["draft"].paths_target)
     assert seen == [frame.settings.quadrature_target] and seen[0] > 3 * PRESETS["draft"].target
     single = cloud(tmp_path, "{quality: draft}", size=24)
-    assert resolve_target(single) == PRESETS["draft"].target  # single scattering keeps the preset's
+    assert resolve_settings(single).quadrature_target == PRESETS["draft"].target  # single scattering keeps its own
     exact = render_frame(replace(s, render=replace(s.render, quality="reference")), progress=False).image
     image = frame.image.astype(np.float64)
     scattered = (image[..., :3] - np.array([0.2, 0.3, 0.5]) * (1.0 - image[..., 3:])).mean()
     err = np.sqrt(np.mean((image[..., :3] - exact[..., :3]) ** 2)) / scattered
     assert 0.0 < err < 0.5 * frame.settings.quadrature_target
-
-
-def resolve_target(scene):
-    from cloudmeta.renderer.quality import resolve_settings
-    return resolve_settings(scene).quadrature_target
 
 
 def test_planned_tails(tmp_path):

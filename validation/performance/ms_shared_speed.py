@@ -5,8 +5,9 @@ error estimate) of the approximate mode's ``method: shared`` and of ``scattering
 to the same ``--quality`` (or, with ``--against no-cache``, of the shared method without its cache of the deep
 orders, ``shared: {cache: 0}``; with ``--against cache``, with the preset's cache built whatever share of the light
 it holds, ``shared: {cache: K}``; with ``--against preset-quadrature``, with its exact order 1 calibrated to the
-preset's own target instead of renderer.quality.SHARED_QUADRATURE of the tails'), alternated (validation.common.alternate: one untimed round, then ``--repeats``);
-prints each one's median and range of wall time.
+preset's own target instead of renderer.quality.SHARED_QUADRATURE of the tails'), alternated
+(validation.common.alternate: one untimed round, then ``--repeats``); prints each one's median and range of wall
+time.
 
     python -m validation.performance.ms_shared_speed [--scenes deck_low_sun wispy_puffs] [--repeats 2]
         [--against paths|no-cache|cache|preset-quadrature]
