@@ -203,9 +203,14 @@ class FrameSettings:
     #: multiple scattering with planned paths: the relative RMSE they aim at (render.error where given, else the
     #: preset's); None in every other case
     paths_target: float | None = None
-    #: the relative RMSE that the calibration keeps the quadrature to: the preset's target, or with the shared
-    #: method SHARED_QUADRATURE of its paths target (None: no target)
-    quadrature_target: float | None = None
+
+    @property
+    def quadrature_target(self):
+        """The relative RMSE that the calibration keeps the quadrature to: the preset's target, or with the shared
+        method SHARED_QUADRATURE of its paths target (None: no target)."""
+        if self.shared is None or self.preset.target is None:
+            return self.preset.target
+        return SHARED_QUADRATURE * float(self.preset.paths_target)
 
     @property
     def target(self):
@@ -258,7 +263,6 @@ def resolve_settings(scene) -> FrameSettings:
         grid = (int(cells or preset.grid[0]), int(photons or preset.grid[1]),
                 COLLISIONS if deposit == "collisions" else FLIGHTS)
     shared = None
-    quadrature_target = preset.target
     if r.scattering == "approximate" and r.method == "shared":
         stride, tails, order = (tuple(r.shared or ()) + (None, None, None))[:3]  # (stride, tails) still reads
         shared = SharedSettings(stride=int(stride or shared_stride(preset.shared, scene.image.width,
@@ -267,8 +271,6 @@ def resolve_settings(scene) -> FrameSettings:
                                 cache_order=int(preset.cache[0] if order is None else order),
                                 cache_cells=int(preset.cache[1]), cache_photons=int(preset.cache[2]),
                                 cache_chosen=order is not None, cache_min_share=float(preset.cache[3]))
-        if preset.target is not None:
-            quadrature_target = SHARED_QUADRATURE * float(preset.paths_target)
     calibrate = (r.calibrate and r.scattering in ("single", "approximate") and preset.start is not None
                  and r.error is None and all(getattr(r, key) is None for key in QUADRATURE_KEYS))
     paths_target = None
@@ -277,5 +279,4 @@ def resolve_settings(scene) -> FrameSettings:
     return FrameSettings(quality=r.quality, preset=preset, shadows=ShadowMode(r.shadows),
                          shadow_map=int(r.shadow_map or SHADOW_MAP_RESOLUTION),
                          quadrature=resolve_quality(r, scene.length_scale()), calibrate=bool(calibrate),
-                         error=r.error, grid=grid, shared=shared, paths=r.ms_spp, paths_target=paths_target,
-                         quadrature_target=quadrature_target)
+                         error=r.error, grid=grid, shared=shared, paths=r.ms_spp, paths_target=paths_target)

@@ -184,8 +184,12 @@ def tail_tracks(scene, packed):
     its order or cache, so built once. The tails are tracked from their first flight whatever render.track_from says
     (it places the unbiased paths' exact flights), so they are built here, not by tracking.paths_grid."""
     grid = majorant_grid(scene, packed.records.media)
-    tracked = PathSettings(max_order=int(scene.render.max_order), rr_order=RR_ORDER, paths=1, track_from=2)
-    return grid, paths_volumes(scene, packed, tracked)
+    return grid, paths_volumes(scene, packed, tail_settings(scene.render.max_order))
+
+
+def tail_settings(max_order):
+    """The tails' records.PathSettings: one tail per call, tracked from the first flight, up to ``max_order``."""
+    return PathSettings(max_order=int(max_order), rr_order=RR_ORDER, paths=1, track_from=2)
 
 
 class Lattice:
@@ -197,7 +201,7 @@ class Lattice:
         self.camera = packed.camera._replace(spp=1)
         self.seed = np.int64(seed ^ TAIL_SEED)
         self.grid, self.volumes = tail_tracks(scene, packed) if tracks is None else tracks
-        self.path_settings = PathSettings(max_order=int(max_order), rr_order=RR_ORDER, paths=1, track_from=2)
+        self.path_settings = tail_settings(max_order)
         self.index = {}
         self.mean = np.zeros((0, len(TAUS), 3))
         self.var = np.zeros((0, len(TAUS), 3))
