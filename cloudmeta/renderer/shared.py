@@ -320,25 +320,30 @@ def shared_light(scene, packed, window, alpha, seed, stride, tails, threshold, p
     return light, stderr, len(lattice.depth)
 
 
-def _unlike_corners(pixel_depth, pr0, pr1, pc0, pc1, br, bc, s, corner_depth):
+def _unlike_corners(pixel_depth, pr0, pr1, pc0, pc1, br, bc, s, corner_depth, chunk=1 << 18):
     """Per block of size s (block rows br, columns bc; corner_depth (n, 4) its corners' optical depths): whether a
     pixel of the block has an optical depth more than e^DEPTH_SPLIT times, or less than e^-DEPTH_SPLIT times, the one
     bilinear between its corners (both at least DEPTH_FLOOR); pixel_depth: the centre rays' depths of the pixels
-    [pr0, pr1) x [pc0, pc1), the only ones read."""
-    if s <= 1 or len(br) == 0:
-        return np.zeros(len(br), bool)
+    [pr0, pr1) x [pc0, pc1), the only ones read. Blocks in chunks of about ``chunk`` pixels."""
+    out = np.zeros(len(br), bool)
+    if s <= 1:
+        return out
     off = np.arange(s)
-    rows = br[:, None] * s + off[None, :]  # (n, s)
-    cols = bc[:, None] * s + off[None, :]
-    rin, cin = (rows >= pr0) & (rows < pr1), (cols >= pc0) & (cols < pc1)
-    u = pixel_depth[np.clip(rows - pr0, 0, pr1 - pr0 - 1)[:, :, None], np.clip(cols - pc0, 0, pc1 - pc0 - 1)[:, None, :]]
     f = off / s
-    d = np.maximum(corner_depth, 0.0)
-    ui = ((1 - f)[None, :, None] * ((1 - f)[None, None, :] * d[:, 0, None, None] + f[None, None, :] * d[:, 1, None, None])
-          + f[None, :, None] * ((1 - f)[None, None, :] * d[:, 2, None, None] + f[None, None, :] * d[:, 3, None, None]))
-    gap = np.abs(np.log(np.maximum(u, DEPTH_FLOOR) / np.maximum(ui, DEPTH_FLOOR)))
-    gap = np.where(rin[:, :, None] & cin[:, None, :], gap, 0.0)
-    return gap.max(axis=(1, 2)) > DEPTH_SPLIT
+    wr = np.stack([1 - f, f])  # (2, s): the top and bottom corners' weights by row within the block
+    step = max(1, chunk // (s * s))
+    for lo in range(0, len(br), step):
+        hi = min(lo + step, len(br))
+        rows = br[lo:hi, None] * s + off  # (n, s)
+        cols = bc[lo:hi, None] * s + off
+        inside = ((rows >= pr0) & (rows < pr1))[:, :, None] & ((cols >= pc0) & (cols < pc1))[:, None, :]
+        u = pixel_depth[np.clip(rows - pr0, 0, pr1 - pr0 - 1)[:, :, None],
+                        np.clip(cols - pc0, 0, pc1 - pc0 - 1)[:, None, :]]
+        d = np.maximum(corner_depth[lo:hi], 0.0).reshape(-1, 2, 2)  # (n, top/bottom, left/right)
+        bilinear = np.einsum("ai,nab,bj->nij", wr, d, wr)
+        gap = np.abs(np.log(np.maximum(u, DEPTH_FLOOR) / np.maximum(bilinear, DEPTH_FLOOR)))
+        out[lo:hi] = np.where(inside, gap, 0.0).max(axis=(1, 2)) > DEPTH_SPLIT
+    return out
 
 
 def _pixel_depths(lattice, r0, r1, c0, c1, chunk=4096):
