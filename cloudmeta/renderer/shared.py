@@ -67,7 +67,8 @@ DEPTH_FLOOR = 0.05
 #: with MARGIN^2 for the pilot's own noise, at least MIN_TAILS. The finer rays near a silhouette have fewer tails
 #: (in proportion to their stride) and raise the image's variance: by 1 + EDGE_REFINED x the share of the pilot's
 #: variance in its blocks whose corners partly miss the media (fitted on the six report scenes of
-#: docs/approximate.md, where it was 1.2-2.4; on the four fitting scenes the noise came out 0.88-1.00 of the plan's)
+#: docs/approximate.md, where it was 1.2-2.4; on the four fitting scenes the noise came out 0.88-1.00 of the plan's,
+#: 0.90-1.08 with the rays that DEPTH_SPLIT adds, which the plan does not count: up to 1.15 on the wisps)
 PILOT_TAILS = 256
 NOISE_SHARE = 0.7
 EDGE_REFINED = 4.0
