@@ -211,20 +211,25 @@ def test_settings_are_validated(tmp_path):
 
 def test_blocks_split_where_a_pixel_sees_another_depth_than_its_corners():
     """A block is split where a pixel's optical depth differs from the one bilinear between its corners by more than
-    the factor e^DEPTH_SPLIT (depths below DEPTH_FLOOR count as DEPTH_FLOOR), against a loop over the pixels."""
+    the factor e^DEPTH_SPLIT (depths below DEPTH_FLOOR count as DEPTH_FLOOR; the bilinear depths built by a loop over
+    the pixels); a block that crosses the last row of the pixels passed reads only the rows before it."""
     from cloudmeta.renderer.shared import DEPTH_FLOOR, DEPTH_SPLIT, _unlike_corners
     rng = np.random.default_rng(7)
     s = 4
-    corners = np.array([[0.5, 1.0, 2.0, 4.0], [0.3, 0.3, 0.3, 0.3], [0.001, 0.002, 0.01, 0.003]])
     br, bc = np.array([0, 0, 1]), np.array([0, 1, 0])
-    depth = np.zeros((2 * s, 2 * s))
-    for k in range(3):
-        for i in range(s):
-            for j in range(s):
-                fr, fc = i / s, j / s
-                d = corners[k]
-                depth[br[k] * s + i, bc[k] * s + j] = ((1 - fr) * ((1 - fc) * d[0] + fc * d[1])
-                                                       + fr * ((1 - fc) * d[2] + fc * d[3]))
+
+    def bilinear(corners):
+        depth = np.zeros((2 * s, 2 * s))
+        for k, d in enumerate(corners):
+            for i in range(s):
+                for j in range(s):
+                    fr, fc = i / s, j / s
+                    depth[br[k] * s + i, bc[k] * s + j] = ((1 - fr) * ((1 - fc) * d[0] + fc * d[1])
+                                                           + fr * ((1 - fc) * d[2] + fc * d[3]))
+        return depth
+
+    corners = np.array([[0.5, 1.0, 2.0, 4.0], [0.3, 0.3, 0.3, 0.3], [0.001, 0.002, 0.01, 0.003]])
+    depth = bilinear(corners)
     assert not _unlike_corners(depth, 0, 2 * s, 0, 2 * s, br, bc, s, corners).any()
     just_in, just_out = np.exp(0.9 * DEPTH_SPLIT), np.exp(1.1 * DEPTH_SPLIT)
     for factor, split in [(just_in, False), (just_out, True), (1 / just_out, True)]:
@@ -233,8 +238,12 @@ def test_blocks_split_where_a_pixel_sees_another_depth_than_its_corners():
         moved[6, 1] *= 5.0  # one of the third: five times its corners' depth, both below the floor
         assert moved[6, 1] < DEPTH_FLOOR
         assert list(_unlike_corners(moved, 0, 2 * s, 0, 2 * s, br, bc, s, corners)) == [split, False, False]
-    # pixels outside [pr0, pr1) x [pc0, pc1) (beyond the frame's border) are not read
-    moved = depth.copy()
-    moved[s:, :] = rng.uniform(5.0, 9.0, (s, 2 * s))
-    assert not _unlike_corners(moved[:s], 0, s, 0, 2 * s, br[:2], bc[:2], s, corners[:2]).any()
-    assert _unlike_corners(moved, 0, 2 * s, 0, 2 * s, br, bc, s, corners)[2]
+    # the third block rising steeply over its rows, cut after its first row: the rows beyond it (where the first
+    # row's depth, clipped, would meet a bilinear depth up to 3 times as deep) do not count; whole, pixels 5-9
+    # deep in its rows do
+    steep = corners.copy()
+    steep[2] = [0.2, 0.2, 4.0, 4.0]
+    depth = bilinear(steep)
+    assert not _unlike_corners(depth[:s + 1], 0, s + 1, 0, 2 * s, br, bc, s, steep).any()
+    depth[s:, :s] = rng.uniform(5.0, 9.0, (s, s))
+    assert list(_unlike_corners(depth, 0, 2 * s, 0, 2 * s, br, bc, s, steep)) == [False, False, True]
