@@ -8,12 +8,13 @@ beside it; the time is ``render_frame(error=True)``'s, the estimate included. Wi
 validation.accuracy.approximate (2,048 paths, their noise subtracted): the true error beside the estimate.
 
 With ``--planned`` the unbiased paths of ``scattering: multiple`` planned to those presets (their own estimate,
-RenderResult.estimated) and the octaves (their measured approximation error) are timed too, and the rows are
+RenderResult.estimated) and the octaves (their measured approximation error) are timed too, with ``--grid`` the grid
+method at those presets (its measured approximation error), and the rows are
 written to validation/results/ms_shared_SIZE.csv with a plot of estimated error against time per scene
 (ms_shared_SIZE.png): estimates, not errors against references, which do not exist at this size.
 
     python -m validation.accuracy.ms_shared [--size 512] [--quality draft default] [--scenes ...] [--check]
-        [--planned draft] [--cache N]
+        [--planned draft] [--grid default] [--skip-shared] [--merge] [--cache N]
 """
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ import numpy as np
 
 import cloudmeta as cm
 from validation.accuracy.approximate import FIT, REPORT, background_times_t, reference, rel_error, scene_of
-from validation.common import (RESULTS, finish_time_error, parse, parser, pyplot, run_main, with_settings,
+from validation.common import (RESULTS, finish_time_error, parse, parser, pyplot, read_csv, run_main, with_settings,
                                write_csv)
 
 
@@ -53,19 +54,24 @@ def measure(name, size, quality, seed=1, cache=None):
 
 
 def measure_other(name, size, how, seed=1):
-    """The planned unbiased paths at a preset (how = "planned draft", ...) or the octaves ("octaves"): their time
-    and estimated error (the plan's estimate; the octaves' measured approximation error, the time including it)."""
+    """The planned unbiased paths at a preset (how = "planned draft", ...), the octaves ("octaves") or the grid
+    method at a preset ("grid default", ...): their time and estimated error (the plan's estimate; the octaves' and
+    the grid's measured approximation error, with its standard error, the time including it)."""
     if how == "octaves":
         s = with_settings(scene_of(SCENES[name], size, "approximate"), quality="default")
+    elif how.startswith("grid"):
+        s = with_settings(scene_of(SCENES[name], size, "approximate", method="grid"), quality=how.split()[1])
     else:
         s = with_settings(scene_of(SCENES[name], size, "multiple"), quality=how.split()[1])
+    approximate = not how.startswith("planned")
     t0 = time.perf_counter()
-    result = cm.render_frame(s, progress=False, seed=seed, error=how == "octaves")
+    result = cm.render_frame(s, progress=False, seed=seed, error=approximate)
     seconds = time.perf_counter() - t0
-    est = result.approximation.rel_rmse if how == "octaves" else result.estimated
+    est = result.approximation.rel_rmse if approximate else result.estimated
+    est_se = result.approximation.stderr if approximate else 0.0
     w, h = s.image.width, s.image.height
-    return dict(scene=name, size=f"{w}x{h}", quality=how, seconds=seconds, estimated=est, est_se=0.0, noise=np.nan,
-                tails=None)
+    return dict(scene=name, size=f"{w}x{h}", quality=how, seconds=seconds, estimated=est, est_se=est_se,
+                noise=np.nan, tails=None)
 
 
 def plot(rows, out, size):
@@ -76,7 +82,7 @@ def plot(rows, out, size):
                              sharex=True, sharey=True, squeeze=False)
     for ax, name in zip(axes.flat, names):
         mine = [r for r in rows if r["scene"] == name]
-        shared = [r for r in mine if not r["quality"].startswith(("planned", "octaves"))]
+        shared = [r for r in mine if not r["quality"].startswith(("planned", "octaves", "grid"))]
         ax.errorbar([r["seconds"] for r in shared], [r["estimated"] for r in shared],
                     yerr=[r["est_se"] for r in shared], fmt="o-", label="approximate, shared")
         planned = [r for r in mine if r["quality"].startswith("planned")]
@@ -85,6 +91,9 @@ def plot(rows, out, size):
         octaves = [r for r in mine if r["quality"] == "octaves"]
         ax.plot([r["seconds"] for r in octaves], [r["estimated"] for r in octaves], "^", markersize=9,
                 label="approximate, octaves")
+        grid = [r for r in mine if r["quality"].startswith("grid")]
+        ax.errorbar([r["seconds"] for r in grid], [r["estimated"] for r in grid], yerr=[r["est_se"] for r in grid],
+                    fmt="s--", markersize=7, label="approximate, grid")
     finish_time_error(fig, axes, names, "estimated relative RMSE",
                       f"Time against estimated error, {size} px wide (each method's own estimate)", out)
 
@@ -100,11 +109,15 @@ def main(argv=None):
                     "before they read the cache (0: no cache; default: the preset's)")
     ap.add_argument("--planned", nargs="*", default=[], help="also the planned paths at these presets, the octaves, "
                     "and a CSV and plot")
+    ap.add_argument("--grid", nargs="*", default=[], help="also the grid method at these presets (with --planned)")
+    ap.add_argument("--skip-shared", action="store_true", help="only the other methods (with --planned)")
+    ap.add_argument("--merge", action="store_true", help="keep the CSV's rows of other scenes and methods: this "
+                    "run's rows replace those of the same scene and method")
     args, _ = parse(ap, argv)
     rows = []
     size = 64 if args.check else args.size
     for name in args.scenes:
-        for quality in args.quality:
+        for quality in [] if args.skip_shared else args.quality:
             r = measure(name, size, quality, cache=args.cache)
             line = (f"{name:14s} {r['size']:>8s} {quality:8s} {r['seconds']:7.1f} s"
                     f"  estimated {r['estimated']:.3f} +- {r['est_se']:.3f} (tails' noise {r['noise']:.3f}, "
@@ -115,13 +128,20 @@ def main(argv=None):
                 line += f"  true {r['true']:.3f}"
             print(line, flush=True)
             rows.append({k: v for k, v in r.items() if k != "image"})
-        for how in (["octaves"] + [f"planned {q}" for q in args.planned]) if args.planned else []:
+        others = ["octaves"] + [f"planned {q}" for q in args.planned] + [f"grid {q}" for q in args.grid]
+        for how in others if args.planned or args.grid else []:
             r = measure_other(name, size, how)
             print(f"{name:14s} {r['size']:>8s} {how:16s} {r['seconds']:7.1f} s  estimated {r['estimated']:.3f}",
                   flush=True)
             rows.append(r)
-    if args.planned:
-        write_csv(RESULTS / f"ms_shared_{size}.csv", rows)
+    if args.planned or args.grid:
+        out = RESULTS / f"ms_shared_{size}.csv"
+        if args.merge and out.exists():
+            mine = {(r["scene"], r["quality"]) for r in rows}
+            kept = [r for r in read_csv(out, floats=("seconds", "estimated", "est_se", "noise"))
+                    if (r["scene"], r["quality"]) not in mine]
+            rows = sorted(kept + rows, key=lambda r: list(SCENES).index(r["scene"]))
+        write_csv(out, rows)
         plot(rows, RESULTS / f"ms_shared_{size}.png", size)
     return dict(rows=rows)
 
