@@ -131,19 +131,24 @@ def main(argv=None):
         others = ["octaves"] + [f"planned {q}" for q in args.planned] + [f"grid {q}" for q in args.grid]
         for how in others if args.planned or args.grid else []:
             r = measure_other(name, size, how)
-            print(f"{name:14s} {r['size']:>8s} {how:16s} {r['seconds']:7.1f} s  estimated {r['estimated']:.3f}",
-                  flush=True)
+            print(f"{name:14s} {r['size']:>8s} {how:16s} {r['seconds']:7.1f} s  estimated {r['estimated']:.3f}"
+                  + (f" +- {r['est_se']:.3f}" if r["est_se"] else ""), flush=True)
             rows.append(r)
-    if args.planned or args.grid:
-        out = RESULTS / f"ms_shared_{size}.csv"
-        if args.merge and out.exists():
-            mine = {(r["scene"], r["quality"]) for r in rows}
-            kept = [r for r in read_csv(out, floats=("seconds", "estimated", "est_se", "noise"))
-                    if (r["scene"], r["quality"]) not in mine]
-            rows = sorted(kept + rows, key=lambda r: list(SCENES).index(r["scene"]))
-        write_csv(out, rows)
-        plot(rows, RESULTS / f"ms_shared_{size}.png", size)
+        if args.planned or args.grid:  # after every scene, so that a long run stopped keeps what it measured
+            _write(rows, size, args.merge)
     return dict(rows=rows)
+
+
+def _write(rows, size, merge):
+    """ms_shared_SIZE.csv and .png of ``rows``; with ``merge`` the CSV's rows of other scenes and methods kept."""
+    out = RESULTS / f"ms_shared_{size}.csv"
+    if merge and out.exists():
+        mine = {(r["scene"], r["quality"]) for r in rows}
+        kept = [r for r in read_csv(out, floats=("seconds", "estimated", "est_se", "noise"))
+                if (r["scene"], r["quality"]) not in mine]
+        rows = sorted(kept + rows, key=lambda r: list(SCENES).index(r["scene"]))
+    write_csv(out, rows)
+    plot(rows, RESULTS / f"ms_shared_{size}.png", size)
 
 
 if __name__ == "__main__":
