@@ -116,8 +116,10 @@ def main(argv=None):
                     "before they read the cache (0: no cache; default: the preset's)")
     ap.add_argument("--planned", nargs="*", default=[], help="also the planned paths at these presets, the octaves, "
                     "and a CSV and plot")
-    ap.add_argument("--grid", nargs="*", default=[], help="also the grid method at these presets (with --planned)")
-    ap.add_argument("--skip-shared", action="store_true", help="only the other methods (with --planned)")
+    ap.add_argument("--grid", nargs="*", default=[], help="also the grid method at these presets, the octaves, "
+                    "and a CSV and plot")
+    ap.add_argument("--skip-shared", action="store_true", help="only the other methods (with --planned or "
+                    "--grid)")
     ap.add_argument("--merge", action="store_true", help="keep the CSV's rows of other scenes and methods: this "
                     "run's rows replace those of the same scene and method")
     args, _ = parse(ap, argv)
