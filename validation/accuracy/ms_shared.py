@@ -83,11 +83,13 @@ def plot(rows, out, size):
     for ax, name in zip(axes.flat, names):
         mine = [r for r in rows if r["scene"] == name]
         shared = [r for r in mine if not r["quality"].startswith(("planned", "octaves", "grid"))]
-        resolved = [r for r in shared if np.isfinite(float(r["est_se"])) and float(r["estimated"]) > 0.0]
-        ax.errorbar([r["seconds"] for r in resolved], [r["estimated"] for r in resolved],
-                    yerr=[r["est_se"] for r in resolved], fmt="o-", label="approximate, shared")
-        for r in shared:
-            if r not in resolved:  # the estimate did not rise above its own paths' noise: no point to draw
+        # an estimate that did not rise above its own paths' noise (0 +- inf) has no point to draw
+        resolved = [np.isfinite(float(r["est_se"])) and float(r["estimated"]) > 0.0 for r in shared]
+        drawn = [r for r, ok in zip(shared, resolved) if ok]
+        ax.errorbar([r["seconds"] for r in drawn], [r["estimated"] for r in drawn],
+                    yerr=[r["est_se"] for r in drawn], fmt="o-", label="approximate, shared")
+        for r, ok in zip(shared, resolved):
+            if not ok:
                 ax.annotate(f"{r['quality']}: not resolved\n({float(r['seconds']):.0f} s)", (float(r["seconds"]), 0.022),
                             fontsize=7, ha="right")
         planned = [r for r in mine if r["quality"].startswith("planned")]
