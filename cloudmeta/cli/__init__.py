@@ -126,7 +126,8 @@ def summary(shown, scene, result, took, paths):
         aim = ""
         if settings.shared is not None and settings.shared.tails is None:  # planned tails: the preset's promise
             aim = f" (target {settings.shared.target:g})"
-        told.append(f"approximation error {a.rel_rmse:.3f} +- {a.stderr:.3f} against multiple scattering{aim}")
+        told.append(f"approximation error {a.rel_rmse:.3f} +- {a.stderr:.3f}{_unresolved(a)} against multiple "
+                    f"scattering{aim}")
     return f"cloudmeta: {shown} {', '.join(what)}: {', '.join(told)}; wrote {', '.join(paths)}"
 
 
@@ -179,8 +180,18 @@ def _details(verbose, result):
     a = result.approximation
     if a is not None:
         verbose(f"the approximation's estimated relative RMSE against unbiased multiple scattering: "
-                f"{a.rel_rmse:.3f} +- {a.stderr:.3f} (from {a.pixels} of {a.cloud_pixels} cloud pixels, {a.paths} "
-                f"paths each; docs/approximate.md)")
+                f"{a.rel_rmse:.3f} +- {a.stderr:.3f}{_unresolved(a)} (from {a.pixels} of {a.cloud_pixels} cloud "
+                f"pixels, {a.paths} paths each; docs/approximate.md)")
+
+
+def _unresolved(a):
+    """What the line adds to an approximation error that did not rise above its own noise: the estimate is then
+    no measure, and only its bound (the estimate plus two standard errors) says something."""
+    if a.resolved:
+        return ""
+    if a.bound == float("inf"):
+        return " (not resolved)"
+    return f" (not resolved: at most {a.bound:.3f})"
 
 
 def _outputs(args, scene):

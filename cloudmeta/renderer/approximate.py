@@ -98,6 +98,18 @@ class ApproximationError:
     cloud_pixels: int
     paths: int
 
+    @property
+    def resolved(self) -> bool:
+        """Whether the estimate rose above its own noise: positive, its standard error within ERROR_PRECISION of
+        it. An estimate that did not is no measure of the error, only a bound on it (``bound``)."""
+        return 0.0 < self.rel_rmse < np.inf and self.stderr <= ERROR_PRECISION * self.rel_rmse
+
+    @property
+    def bound(self) -> float:
+        """The estimate plus two standard errors: what the error can be at most, resolved or not (inf: nothing is
+        known)."""
+        return self.rel_rmse + 2.0 * self.stderr
+
 
 def sample_pixels(alpha, n, seed):
     """Up to n cloud pixels (alpha > 0), drawn without replacement by a generator keyed by seed, sorted."""
@@ -156,8 +168,7 @@ def approximation_error(scene, image, packed, window, seed=0, pixels=None, paths
         each_pixel(lambda i, j: render_paths(camera, single, quad, settings, grid, volumes, i, j, j + 1, mean, stderr))
         est = _estimate(exact[rows, cols], mean[rows, cols], stderr[rows, cols], approx, background, frac,
                         int(chosen.size), cloud, paths)
-        resolved = 0.0 < est.rel_rmse < np.inf and est.stderr <= ERROR_PRECISION * est.rel_rmse
-        if resolved or paths * 4 > MAX_ERROR_PATHS:
+        if est.resolved or paths * 4 > MAX_ERROR_PATHS:
             return est
         paths *= 4
 

@@ -355,6 +355,7 @@ def test_the_summary_says_what_is_known():
     from types import SimpleNamespace
 
     from cloudmeta.cli import summary
+    from cloudmeta.renderer.approximate import ApproximationError
     from cloudmeta.renderer.quality import resolve_settings
     from cloudmeta.scene import load_scene
     scene = load_scene(ROOT / "scenes" / "cumulus.yaml", width=64, height=48)
@@ -378,9 +379,14 @@ def test_the_summary_says_what_is_known():
     multiple = replace(scene, render=replace(scene.render, scattering="multiple"))
     assert line(multiple, scattered=None).endswith("multiple scattering, quality default: 2.35 s; wrote c.exr")
     approximate = replace(scene, render=replace(scene.render, scattering="approximate", method="grid"))
-    got = line(approximate, estimated=3e-4, approximation=SimpleNamespace(rel_rmse=0.1234, stderr=0.01))
+    got = line(approximate, estimated=3e-4, approximation=ApproximationError(0.1234, 0.01, 512, 3000, 64))
     assert ("approximate multiple scattering (grid), quality default: 2.35 s, estimated error 3.0e-04 (target "
             "1.0e-03), approximation error 0.123 +- 0.010 against multiple scattering; wrote c.exr") in got
+    # an estimate under its own noise is no measure: the line gives its bound, the estimate plus 2 standard errors
+    got = line(approximate, estimated=3e-4, approximation=ApproximationError(0.033, 0.0364, 512, 3000, 1024))
+    assert "approximation error 0.033 +- 0.036 (not resolved: at most 0.106) against multiple scattering" in got
+    got = line(approximate, estimated=3e-4, approximation=ApproximationError(0.0, float("inf"), 512, 3000, 1024))
+    assert "approximation error 0.000 +- inf (not resolved) against multiple scattering" in got
 
 
 def test_every_error_class_is_exported_and_listed_in_the_docs():
