@@ -130,3 +130,28 @@ def test_calibrate_is_linear_and_never_runs_away():
         return 1.0 + 0.5 * k if k <= 16 else 5.0 + 0.25 * (k - 8)
     n, _, _ = mp.calibrate(cost, 11.0, 4, 10 ** 6)
     assert n > 20 and abs(cost(n) - 11.0) < abs(cost(20) - 11.0)
+
+
+def test_shared_comparison_skips_cleanly_without_mitsuba(monkeypatch, capsys):
+    from validation.peers import mitsuba_shared as ms
+    monkeypatch.setitem(sys.modules, "mitsuba", None)
+    monkeypatch.setitem(sys.modules, "drjit", None)
+    assert ms.main([]) == dict(passed=True, skipped=True)
+    assert capsys.readouterr().out.strip().splitlines() == [mp.INSTALL]
+
+
+def test_shared_total_error_subtracts_the_references_noise_only():
+    # a render 5 % off a truth of scattered light 1 over a background 1, against a reference of two noisy halves:
+    # the reference's noise is subtracted, the render's own error (bias and noise alike) is kept
+    from validation.peers import mitsuba_shared as ms
+    rng = np.random.default_rng(3)
+    truth = 2.0 + 0.3 * rng.standard_normal((96, 96, 3))
+    bt = np.ones_like(truth)
+    halves = [truth + 0.1 * rng.standard_normal(truth.shape) for _ in range(2)]
+    u = 0.5 * (halves[0] + halves[1])
+    var = (halves[0] - halves[1]) ** 2 / 4.0
+    scattered = float(np.mean(truth - bt))
+    biased = [truth + 0.05 * scattered for _ in range(3)]
+    assert ms.total_error(biased, u, var, bt) == pytest.approx(0.05, rel=0.05)
+    noisy = [truth + 0.03 * scattered * rng.standard_normal(truth.shape) for _ in range(4)]
+    assert ms.total_error(noisy, u, var, bt) == pytest.approx(0.03, rel=0.1)
