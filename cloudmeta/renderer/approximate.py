@@ -106,8 +106,8 @@ class ApproximationError:
 
     @property
     def bound(self) -> float:
-        """The estimate plus two standard errors: what the error can be at most, resolved or not (inf: nothing is
-        known)."""
+        """The estimate plus two standard errors: an upper bound on the error (one-sided, about 97.5 %), resolved or
+        not (inf: nothing is known)."""
         return self.rel_rmse + 2.0 * self.stderr
 
 
