@@ -21,8 +21,8 @@ box-filtered by 16 stratified camera rays (``image.spp`` 16: Mitsuba's ``box`` f
    rel_error); the RMS over the seeds. Mitsuba's includes its voxel bias; cloudmeta's its sharing's and cache's
    bias and the tails' noise.
 
-    python -m validation.peers.mitsuba_shared [--size 128] [--budgets 5 30] [--strides 2 4 4:0] [--seeds 4] [--presets draft]
-                                              [--ref-paths 4096] [--scenes cumulus_front cumulus_back cumulus_side]
+    python -m validation.peers.mitsuba_shared [--size 128] [--budgets 5 30] [--strides 2 4 4:0] [--seeds 4]
+        [--presets draft] [--ref-paths 4096] [--scenes cumulus_front cumulus_back cumulus_side]
 
 Writes validation/results/mitsuba/shared_SIZE.csv (keeping an earlier run's rows of other scenes, budgets and
 presets). Without mitsuba it says how to install it and exits 0.
@@ -36,42 +36,33 @@ from dataclasses import replace
 
 import numpy as np
 
+from validation.accuracy.approximate import background_times_t, rel_error, scene_of
 from validation.common import RESULTS, read_csv, run_main, with_settings, write_csv
-from validation.peers.mitsuba_peer import (INSTALL, calibrate, clocks, import_mitsuba, mitsuba_render, mitsuba_scene,
-                                           since, voxelise)
+from validation.peers.mitsuba_peer import (INSTALL, calibrate, clocks, cloudmeta_render, import_mitsuba, mitsuba_render,
+                                           mitsuba_scene, since, voxelise)
 
 #: camera rays per pixel (a 4 x 4 stratified box filter, as Mitsuba's box filter integrates the pixel)
 SPP = 16
 
 
 def _scene(name, size, scattering, **settings):
-    from validation.accuracy.approximate import scene_of
     from validation.accuracy.ms_shared import SCENES
     s = scene_of(SCENES[name], size, scattering, method="shared")
     s = replace(s, image=replace(s.image, spp=SPP))
     return with_settings(s, **settings)
 
 
-def _render(scene, seed):
-    """(linear RGB float64, wall s, CPU s) of cm.render."""
-    import cloudmeta as cm
-    t0 = clocks()
-    img = cm.render(scene, progress=False, seed=seed)[..., :3].astype(np.float64)
-    return (img, *since(t0))
-
-
 def reference(name, size, paths):
     """(U, its per-pixel noise variance, the background seen through the media, seconds): two seeds of
     ``paths`` unbiased paths a pixel (cached in results/mitsuba/shared_ref_NAME_SIZE_PATHS.npz)."""
     import cloudmeta as cm
-    from validation.accuracy.approximate import background_times_t
     f = RESULTS / "mitsuba" / f"shared_ref_{name}_{size}_{paths}.npz"
     if f.exists():
         z = np.load(f)
         return z["u"], z["var"], z["bt"], float(z["seconds"])
     s = _scene(name, size, "multiple", quality="fine", ms_spp=paths)
     t0 = time.perf_counter()
-    halves = [_render(s, 5000 + k)[0] for k in range(2)]
+    halves = [cloudmeta_render(s, 5000 + k)[0] for k in range(2)]
     seconds = time.perf_counter() - t0
     single = cm.render(with_settings(s, scattering="single"), progress=False)
     bt = background_times_t(s, single)
@@ -85,10 +76,8 @@ def reference(name, size, paths):
 def total_error(images, u, var, bt):
     """The RMS over the renders of their relative RMSE against U over the scattered light, U's noise
     subtracted."""
-    scattered = float(np.mean(u - bt))
-    noise = float(np.mean(var))
-    ms = [max(float(np.mean((a - u) ** 2)) - noise, 0.0) for a in images]
-    return math.sqrt(float(np.mean(ms))) / scattered
+    se = np.sqrt(var)
+    return math.sqrt(float(np.mean([rel_error(a, u, se, bt) ** 2 for a in images])))
 
 
 def _preset(name, size, preset, u, var, bt):
@@ -98,14 +87,15 @@ def _preset(name, size, preset, u, var, bt):
     s = _scene(name, size, "approximate", quality=preset)
     t0 = clocks()
     r = cm.render_frame(s, progress=False, seed=1, error=True)
-    wall, cpu = since(t0)
+    wall, _ = since(t0)
     err = total_error([r.image[..., :3].astype(np.float64)], u, var, bt)
     e = r.approximation
     row = dict(scene=name, size=size, budget_s="", method=f"shared {preset}, planned", samples=r.plan.tails,
                fixed_s="", cpu_s_per_thread="", cpu_spread="", wall_s=round(wall, 2), total_error=round(err, 5),
                error_at_budget="", estimate=round(e.rel_rmse, 5), estimate_stderr=round(e.stderr, 5))
+    ratio = f" ({e.rel_rmse / err:.2f}x)" if err > 0.0 else " (the error is under the reference's noise)"
     print(f"  {preset}: {wall:.1f} s wall with the estimate, total error {err:.4f}, estimated {e.rel_rmse:.4f} +- "
-          f"{e.stderr:.4f} ({e.rel_rmse / err:.2f}x)", flush=True)
+          f"{e.stderr:.4f}{ratio}", flush=True)
     return row
 
 
@@ -153,7 +143,7 @@ def main(argv=None):
             continue
         ms = mitsuba_scene(mi, base, voxelise(base, args.grid), base.render.max_order + 1)
         mitsuba_render(mi, ms, 1, 77)  # untimed: Mitsuba's first render compiles its kernels
-        _render(with_settings(base, shared=(4, 64, None)), 77)  # untimed: numba's kernels load
+        cloudmeta_render(with_settings(base, shared=(4, 64, None)), 77)  # untimed: numba's kernels load
         for budget in args.budgets:
             runs = {}
             for variant in args.strides:
@@ -161,10 +151,10 @@ def main(argv=None):
                 stride, cache = int(stride), (0 if no_cache else None)
 
                 def cm_cpu(n, stride=stride, cache=cache):
-                    return _render(with_settings(base, shared=(stride, int(n), cache)), 77)[2] / args.threads
+                    return cloudmeta_render(with_settings(base, shared=(stride, int(n), cache)), 77)[2] / args.threads
                 n, _, fixed = calibrate(cm_cpu, budget, 64, 1 << 20)
                 key = f"shared stride {stride}" + (" no cache" if cache == 0 else "")
-                runs[key] = (n, fixed, lambda seed, n=n, stride=stride, cache=cache: _render(
+                runs[key] = (n, fixed, lambda seed, n=n, stride=stride, cache=cache: cloudmeta_render(
                     with_settings(base, shared=(stride, n, cache)), seed))
             n, _, fixed = calibrate(lambda k: mitsuba_render(mi, ms, int(k), 77)[2] / args.threads, budget, 16, 1 << 20)
             runs["mitsuba"] = (n, fixed, lambda seed, n=n: mitsuba_render(mi, ms, n, seed))
